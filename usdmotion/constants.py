@@ -1,0 +1,30 @@
+"""Named tolerances and unit tables; every epsilon in the package lives here."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+#: Tolerances, by purpose.
+tol = SimpleNamespace(
+    quat_norm=1e-6,          # |‖q‖ - 1| accepted as a unit quaternion
+    small_angle=1e-8,        # radians; below this, log/exp use Taylor branches
+    translation_equal=1e-6,  # relative; per-frame translation equal to the OFFSET
+    gimbal=1e-7,             # |cos(middle angle)| treated as gimbal lock
+)
+
+#: Metres per unit for the names accepted by ``--units``.
+METERS_PER_UNIT = {
+    "m": 1.0,
+    "cm": 0.01,
+    "mm": 0.001,
+    "in": 0.0254,
+    "ft": 0.3048,
+    # CMU ASF/AMC skeletons: 1 unit = 1/0.45 inch (cgspeed BVH conversions keep it).
+    "asf": 0.0254 / 0.45,
+}
+
+DEFAULT_UNITS = "cm"
+UP_AXES = ("Y", "Z")
+
+#: Largest frame count accepted from a file header before we call it absurd.
+MAX_FRAMES = 100_000_000

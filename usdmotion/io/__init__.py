@@ -1,0 +1,70 @@
+"""File formats: extension → reader / writer registry.
+
+``read_motion(path, **options)`` and ``write_motion(motion, path, **options)`` dispatch on
+the extension; options a format does not use are ignored (e.g. ``root_offset`` for USD).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from usdmotion.errors import InputError, OutputError
+from usdmotion.motion import Motion
+
+BVH_EXTENSIONS = (".bvh",)
+USD_EXTENSIONS = (".usd", ".usda", ".usdc", ".usdz")
+
+
+def _kind(path: Path) -> str | None:
+    ext = path.suffix.lower()
+    if ext in BVH_EXTENSIONS:
+        return "bvh"
+    if ext in USD_EXTENSIONS:
+        return "usd"
+    return None
+
+
+def read_motion(path: str | os.PathLike, root_offset: str = "auto", units: str | float | None = None,
+                up_axis: str | None = None, lenient: bool = False) -> Motion:
+    """Read a BVH or UsdSkel file.
+
+    For BVH, ``units`` (default ``"cm"``) and ``up_axis`` (default ``"Y"``) state what the
+    file does not; for USD they come from the stage and, if given, override it.
+    """
+    import dataclasses
+
+    path = Path(path)
+    kind = _kind(path)
+    if kind == "bvh":
+        from usdmotion.io.bvh import read_bvh
+
+        return read_bvh(path, root_offset=root_offset, units="cm" if units is None else units,
+                        up_axis=up_axis or "Y", lenient=lenient)
+    if kind == "usd":
+        from usdmotion.io.bvh import resolve_units
+        from usdmotion.io.usd import read_usd
+
+        motion = read_usd(path)
+        changes = {}
+        if units is not None:
+            changes["meters_per_unit"] = resolve_units(units)
+        if up_axis is not None:
+            changes["up_axis"] = up_axis
+        return dataclasses.replace(motion, **changes) if changes else motion
+    raise InputError(path, f"unknown input format {path.suffix!r} (use .bvh, {', '.join(USD_EXTENSIONS)})")
+
+
+def write_motion(motion: Motion, path: str | os.PathLike, **options) -> Path:
+    """Write ``motion`` as BVH or USD, chosen by the extension of ``path`` (atomically)."""
+    path = Path(path)
+    kind = _kind(path)
+    if kind == "bvh":
+        from usdmotion.io.bvh import write_bvh
+
+        return write_bvh(motion, path, **{k: v for k, v in options.items() if k in ("decimals",)})
+    if kind == "usd":
+        from usdmotion.io.usd import write_usd
+
+        return write_usd(motion, path, **{k: v for k, v in options.items() if k in ("name", "decorate")})
+    raise OutputError(f"{path}: unknown output format {path.suffix!r} (use .bvh, {', '.join(USD_EXTENSIONS)})")

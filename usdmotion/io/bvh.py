@@ -1,0 +1,434 @@
+"""BVH reading and writing: ``parse_bvh`` → ``BvhData`` → ``Motion`` → ``write_bvh``.
+
+Conventions (see README "Conventions"):
+
+* Channel values are degrees and file units; a joint's rotation is the product of its
+  rotation channels in the order they are listed (``Zrotation Xrotation Yrotation`` →
+  ``R = Rz @ Rx @ Ry``); missing rotation axes are zero.
+* Root position: ``root_offset="add"`` (BVH specification, fairmotion, bvh11) puts the
+  root at ``OFFSET + channels``; ``"replace"`` (Blender, pybvh, bvhio) at the channels
+  alone (axes without a channel keep the OFFSET). Both agree when the OFFSET is zero.
+  ``"auto"`` (default) picks ``"replace"`` when the channels evidently already contain
+  the OFFSET (their mean along the OFFSET's largest axis is nearer the OFFSET than
+  zero: every exporter with a non-zero root OFFSET in our corpus does this), else
+  ``"add"``. The choice made is stored in ``Motion.root_offset``.
+* Position channels on non-root joints *replace* the OFFSET (every exporter that writes
+  them stores the full local translation; adding would double the bone).
+* ``End Site`` blocks become leaf joints named ``<parent>_End`` with ``end_sites`` set.
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from usdmotion.constants import MAX_FRAMES, METERS_PER_UNIT
+from usdmotion.errors import BvhParseError, UsdMotionWarning
+from usdmotion.io.atomic import atomic_output
+from usdmotion.io.bvh_header import BvhHeader, header_arrays, parse_header
+from usdmotion.io.bvh_rows import line_of_row, parse_rows
+from usdmotion.motion import POSITION_CHANNELS, ROTATION_CHANNELS, Motion, RootOffset
+from usdmotion.rotations import euler_to_quat, quat_to_euler
+
+DEFAULT_ROOT_CHANNELS = ("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation")
+DEFAULT_JOINT_CHANNELS = ("Zrotation", "Xrotation", "Yrotation")
+
+
+@dataclass(frozen=True)
+class BvhData:
+    """A parsed BVH file as plain arrays (no rotation math applied).
+
+    Attributes:
+        joint_names: ``J`` names (end sites named ``<parent>_End``).
+        parents: ``(J,)`` parent indices, ``-1`` for the root.
+        offsets: ``(J, 3)`` OFFSETs, file units.
+        channels: per joint, its channel names in file order.
+        end_sites: ``(J,)`` bool.
+        frame_time: seconds per frame, as written.
+        values: ``(F, C)`` channel values, degrees and file units.
+        path: the file read, for messages.
+    """
+
+    joint_names: tuple[str, ...]
+    parents: np.ndarray
+    offsets: np.ndarray
+    channels: tuple[tuple[str, ...], ...]
+    end_sites: np.ndarray
+    frame_time: float
+    values: np.ndarray
+    path: str | None = None
+
+
+def _decode(raw: bytes, path: str | None) -> str:
+    if not raw.strip():
+        raise BvhParseError(path, "empty file", 1)
+    if raw.startswith(b"\xef\xbb\xbf"):
+        raw = raw[3:]
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = raw.count(b"\n", 0, exc.start) + 1
+        column = exc.start - (raw.rfind(b"\n", 0, exc.start) + 1) + 1
+        raise BvhParseError(path, f"not UTF-8 text (byte 0x{raw[exc.start]:02x})", line, column) from None
+    if "\x00" in text[:4096]:
+        line = text.count("\n", 0, text.index("\x00")) + 1
+        raise BvhParseError(path, "binary data (NUL byte), not a BVH text file", line)
+    return text.replace("\r\n", "\n").replace("\r", "\n") if "\r" in text[:65536] else text
+
+
+def _unique_names(header: BvhHeader, path: str | None) -> tuple[str, ...]:
+    names = list(header.joint_names)
+    seen: dict[str, int] = {}
+    renamed = []
+    for j, name in enumerate(names):
+        if name in seen:
+            k = 2
+            while f"{name}_{k}" in seen or f"{name}_{k}" in names:
+                k += 1
+            names[j] = f"{name}_{k}"
+            renamed.append((header.name_tokens[j].line, name, names[j]))
+        seen[names[j]] = j
+    if renamed:
+        line, old, new = renamed[0]
+        warnings.warn(f"{path}:{line}: joint name {old!r} repeats; renamed to {new!r}"
+                      + (f" (and {len(renamed) - 1} more)" if len(renamed) > 1 else ""),
+                      UsdMotionWarning, stacklevel=3)
+    return tuple(names)
+
+
+def parse_bvh(text: str | bytes, path: str | os.PathLike | None = None, lenient: bool = False) -> BvhData:
+    """Parse BVH text or bytes into :class:`BvhData`.
+
+    Args:
+        text: the whole file.
+        path: used in error messages only.
+        lenient: keep the complete motion rows when ``Frames:`` disagrees with the rows
+            or rows have the wrong number of values (warns instead of raising).
+
+    Raises:
+        BvhParseError: malformed input, naming the file, line and column.
+    """
+    path = None if path is None else str(path)
+    raw = text.encode("utf-8") if isinstance(text, str) else bytes(text)
+    text = _decode(raw, path)
+    header = parse_header(text, path)
+    n_channels = sum(len(c) for c in header.channels)
+    data = text[header.data_offset:].encode("utf-8")
+    rows = parse_rows(data, n_channels, header.data_line, path, lenient)
+    values = rows.values
+    n_rows = values.shape[0]
+    if n_rows != header.n_frames:
+        claim = f"Frames: {header.n_frames}" + (" (absurd)" if header.n_frames > MAX_FRAMES else "")
+        message = f"{claim} but the file has {n_rows} complete motion rows"
+        if not lenient:
+            raise BvhParseError(path, message + " (use --lenient to keep the complete rows)",
+                                header.frames_line)
+        warnings.warn(f"{path}:{header.frames_line}: {message}; keeping {n_rows}", UsdMotionWarning,
+                      stacklevel=2)
+    bad = ~np.isfinite(values)
+    if bad.any():
+        row, col = (int(i) for i in np.argwhere(bad)[0])
+        line = line_of_row(data, row, header.data_line)
+        raise BvhParseError(path, f"non-finite value ({values[row, col]}) in channel {col + 1} of the motion row",
+                            line)
+    parents, offsets = header_arrays(header)
+    values.setflags(write=False)
+    return BvhData(
+        joint_names=_unique_names(header, path),
+        parents=parents,
+        offsets=offsets,
+        channels=tuple(header.channels),
+        end_sites=np.asarray(header.end_sites, dtype=bool),
+        frame_time=header.frame_time,
+        values=values,
+        path=path,
+    )
+
+
+def _channel_columns(channels: tuple[tuple[str, ...], ...]) -> list[dict[str, int]]:
+    """Per joint, channel name → column index in the ``(F, C)`` value array."""
+    columns, k = [], 0
+    for names in channels:
+        columns.append({name: k + i for i, name in enumerate(names)})
+        k += len(names)
+    return columns
+
+
+def rotation_order(names: tuple[str, ...]) -> str:
+    """Euler order of a joint's channel list: rotation channels in listed order, then
+    the missing axes (whose angles are zero), e.g. ``("Zrotation",)`` → ``"ZXY"``."""
+    present = "".join(n[0] for n in names if n in ROTATION_CHANNELS)
+    return present + "".join(a for a in "XYZ" if a not in present)
+
+
+def _euler_columns(columns: dict[str, int], order: str, missing: int) -> np.ndarray:
+    """Column index of each axis of ``order`` (``missing`` for axes without a channel)."""
+    return np.array([columns.get(f"{axis}rotation", missing) for axis in order])
+
+
+def rotations_from_channels(values: np.ndarray, channels: tuple[tuple[str, ...], ...]) -> np.ndarray:
+    """Local rotations ``(F, J, 4)`` wxyz from channel values ``(F, C)`` in degrees.
+
+    Joints sharing an Euler order are converted together (at most six groups).
+    """
+    n_frames, n_joints = values.shape[0], len(channels)
+    padded = np.concatenate([values, np.zeros((n_frames, 1))], axis=1)
+    zero_col = values.shape[1]
+    columns = _channel_columns(channels)
+    rotations = np.zeros((n_frames, n_joints, 4))
+    rotations[..., 0] = 1.0
+    groups: dict[str, list[int]] = {}
+    for j, names in enumerate(channels):
+        if any(n in ROTATION_CHANNELS for n in names):
+            groups.setdefault(rotation_order(names), []).append(j)
+    for order, joints in groups.items():
+        gather = np.stack([_euler_columns(columns[j], order, zero_col) for j in joints])  # (G, 3)
+        angles = np.deg2rad(padded[:, gather])  # (F, G, 3)
+        rotations[:, joints] = euler_to_quat(angles, order)
+    return rotations
+
+
+def _positions(values: np.ndarray, columns: dict[str, int], base: np.ndarray, add: bool) -> np.ndarray:
+    """``(F, 3)`` translation from a joint's position channels over ``base (3,)``."""
+    out = np.broadcast_to(base, (values.shape[0], 3)).copy()
+    for axis, name in enumerate(POSITION_CHANNELS):
+        if name in columns:
+            channel = values[:, columns[name]]
+            out[:, axis] = base[axis] + channel if add else channel
+    return out
+
+
+def guess_root_offset(data: BvhData) -> RootOffset:
+    """``"replace"`` if the root position channels already contain the root OFFSET, else ``"add"``.
+
+    Looks along the OFFSET's largest axis: channel mean nearer the OFFSET than zero
+    means the channels are absolute positions (adding would double them).
+    """
+    offset = data.offsets[0]
+    columns = _channel_columns(data.channels)[0]
+    axis = int(np.argmax(np.abs(offset)))
+    name = POSITION_CHANNELS[axis]
+    if offset[axis] == 0.0 or name not in columns or data.values.shape[0] == 0:
+        return "add"
+    mean = float(np.mean(data.values[:, columns[name]]))
+    return "replace" if abs(mean - offset[axis]) < abs(mean) else "add"
+
+
+def motion_from_bvh(data: BvhData, root_offset: str = "auto", meters_per_unit: float = 0.01,
+                    up_axis: str = "Y") -> Motion:
+    """Build a :class:`Motion` from parsed BVH arrays.
+
+    Args:
+        data: output of :func:`parse_bvh`.
+        root_offset: ``"auto"``, ``"add"`` or ``"replace"`` (see module docstring).
+        meters_per_unit: length of one file unit in metres (BVH does not store it).
+        up_axis: ``"Y"`` or ``"Z"``, the file's vertical axis.
+    """
+    if root_offset not in ("auto", "add", "replace"):
+        raise ValueError(f"root_offset must be 'auto', 'add' or 'replace', got {root_offset!r}")
+    if root_offset == "auto":
+        root_offset = guess_root_offset(data)
+    values = data.values
+    columns = _channel_columns(data.channels)
+    rotations = rotations_from_channels(values, data.channels)
+    root_translation = _positions(values, columns[0], data.offsets[0], add=root_offset == "add")
+    joint_translations = None
+    moving = [j for j in range(1, len(data.channels)) if any(n in POSITION_CHANNELS for n in data.channels[j])]
+    if moving:
+        joint_translations = np.broadcast_to(data.offsets, (values.shape[0],) + data.offsets.shape).copy()
+        for j in moving:
+            joint_translations[:, j] = _positions(values, columns[j], data.offsets[j], add=False)
+    return Motion(
+        joint_names=data.joint_names,
+        parents=data.parents,
+        offsets=data.offsets,
+        rotations=rotations,
+        root_translation=root_translation,
+        fps=1.0 / data.frame_time,
+        joint_translations=joint_translations,
+        end_sites=data.end_sites,
+        meters_per_unit=meters_per_unit,
+        up_axis=up_axis,
+        channels=data.channels,
+        root_offset=root_offset,
+        source_channels=values,
+    )
+
+
+def resolve_units(units: str | float) -> float:
+    """Metres per unit from a name (``cm``, ``m``, ``mm``, ``in``, ``ft``, ``asf``) or a number."""
+    if isinstance(units, (int, float)):
+        value = float(units)
+    else:
+        key = str(units).strip().lower()
+        if key in METERS_PER_UNIT:
+            return METERS_PER_UNIT[key]
+        try:
+            value = float(key)
+        except ValueError:
+            raise ValueError(f"unknown units {units!r}: use one of {', '.join(METERS_PER_UNIT)} "
+                             "or metres per unit as a number") from None
+    if not (np.isfinite(value) and value > 0):
+        raise ValueError(f"units must be a positive number of metres per unit, got {units!r}")
+    return value
+
+
+def read_bvh(path: str | os.PathLike, root_offset: str = "auto", units: str | float = "cm",
+             up_axis: str = "Y", lenient: bool = False) -> Motion:
+    """Read a BVH file into a :class:`Motion` (see :func:`parse_bvh`, :func:`motion_from_bvh`)."""
+    path = Path(path)
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise BvhParseError(path, f"cannot read: {exc.strerror or exc}") from None
+    data = parse_bvh(raw, path, lenient=lenient)
+    return motion_from_bvh(data, root_offset=root_offset, meters_per_unit=resolve_units(units), up_axis=up_axis)
+
+
+# --------------------------------------------------------------------------- writing
+
+
+def default_channels(motion: Motion) -> tuple[tuple[str, ...], ...]:
+    """A BVH channel layout for a motion read from elsewhere (USD, synthesis).
+
+    Root: 3 positions + ZXY rotations; joints with per-frame translations: the same;
+    other joints: ZXY rotations; end sites: none.
+    """
+    moving = np.zeros(motion.n_joints, bool)
+    if motion.joint_translations is not None:
+        deviation = np.abs(motion.joint_translations - motion.offsets[None]).max(axis=(0, 2))
+        moving = deviation > 1e-9
+    layout = []
+    for j in range(motion.n_joints):
+        if j == 0 or moving[j]:
+            layout.append(DEFAULT_ROOT_CHANNELS)
+        elif motion.end_sites[j]:
+            layout.append(())
+        else:
+            layout.append(DEFAULT_JOINT_CHANNELS)
+    return tuple(layout)
+
+
+def channel_values(motion: Motion, channels: tuple[tuple[str, ...], ...]) -> np.ndarray:
+    """Channel values ``(F, C)`` (degrees, file units) of a motion for a channel layout.
+
+    Euler angles take the branch closest to ``motion.source_channels`` when it matches
+    the layout (lossless round trips), else are unwrapped over time.
+    """
+    columns = _channel_columns(channels)
+    n_channels = sum(len(c) for c in channels)
+    out = np.zeros((motion.n_frames, n_channels))
+    translations = motion.joint_translations
+    for j, names in enumerate(channels):
+        if not any(n in POSITION_CHANNELS for n in names):
+            continue
+        if j == 0:
+            pos = motion.root_translation - (motion.offsets[0] if motion.root_offset == "add" else 0.0)
+        else:
+            pos = motion.offsets[j][None] if translations is None else translations[:, j]
+        for axis, name in enumerate(POSITION_CHANNELS):
+            if name in columns[j]:
+                out[:, columns[j][name]] = np.broadcast_to(pos[:, axis] if pos.ndim == 2 else pos[0, axis],
+                                                           (motion.n_frames,))
+    reference = motion.source_channels
+    if reference is not None and (motion.channels != channels or reference.shape[1] != n_channels):
+        reference = None
+    groups: dict[str, list[int]] = {}
+    for j, names in enumerate(channels):
+        if any(n in ROTATION_CHANNELS for n in names):
+            groups.setdefault(rotation_order(names), []).append(j)
+    for order, joints in groups.items():
+        cols = np.stack([_euler_columns(columns[j], order, -1) for j in joints])  # (G, 3)
+        ref = None
+        if reference is not None:
+            ref = np.deg2rad(np.where(cols[None] >= 0, reference[:, np.maximum(cols, 0)], 0.0))
+        angles = np.rad2deg(quat_to_euler(motion.rotations[:, joints], order, reference=ref))
+        present = cols >= 0
+        frame_idx = np.arange(motion.n_frames)[:, None]
+        for g in range(len(joints)):
+            out[frame_idx, cols[g][present[g]][None]] = angles[:, g][:, present[g]]
+    return out
+
+
+def _dfs_order(parents: np.ndarray) -> list[int]:
+    children: dict[int, list[int]] = {}
+    for j, p in enumerate(parents):
+        children.setdefault(int(p), []).append(j)
+    order, stack = [], [0]
+    while stack:
+        j = stack.pop()
+        order.append(j)
+        stack.extend(reversed(children.get(j, [])))
+    return order
+
+
+def _fmt(x: float, decimals: int = 9) -> str:
+    """Shortest text that reads back as ``x`` rounded to ``decimals`` (no ``-0``)."""
+    return repr(round(float(x), decimals) + 0.0)
+
+
+def bvh_text(motion: Motion, decimals: int = 9) -> str:
+    """The BVH file for a motion, as text (``\\n`` line ends)."""
+    channels = motion.channels or default_channels(motion)
+    order = _dfs_order(motion.parents)
+    lines = ["HIERARCHY"]
+    depth_of = {0: 0}
+    open_stack: list[int] = []
+    column_order: list[int] = []
+    starts = np.cumsum([0] + [len(c) for c in channels])
+    for j in order:
+        parent = int(motion.parents[j])
+        while open_stack and open_stack[-1] != parent:
+            open_stack.pop()
+            lines.append("  " * len(open_stack) + "}")
+        depth = len(open_stack)
+        depth_of[j] = depth
+        pad = "  " * depth
+        offset = " ".join(_fmt(v, decimals) for v in motion.offsets[j])
+        if motion.end_sites[j] and not channels[j]:
+            lines += [f"{pad}End Site", f"{pad}{{", f"{pad}  OFFSET {offset}"]
+        else:
+            keyword = "ROOT" if j == 0 else "JOINT"
+            lines += [f"{pad}{keyword} {motion.joint_names[j]}", f"{pad}{{", f"{pad}  OFFSET {offset}"]
+            if channels[j] or j == 0:
+                lines.append(f"{pad}  CHANNELS {len(channels[j])} {' '.join(channels[j])}".rstrip())
+            column_order.extend(range(starts[j], starts[j + 1]))
+        open_stack.append(j)
+    while open_stack:
+        open_stack.pop()
+        lines.append("  " * len(open_stack) + "}")
+    values = channel_values(motion, channels)[:, column_order]
+    lines += ["MOTION", f"Frames: {motion.n_frames}", f"Frame Time: {1.0 / motion.fps:.10g}"]
+    return "\n".join(lines) + "\n" + _rows_text(np.round(values, decimals) + 0.0)
+
+
+def _rows_text(values: np.ndarray) -> str:
+    """Rows of space-separated shortest round-trip floats (pyarrow's CSV writer)."""
+    if values.size == 0:
+        return ""
+    import pyarrow as pa
+    import pyarrow.csv as pcsv
+
+    table = pa.table({f"c{k}": values[:, k] for k in range(values.shape[1])})
+    sink = pa.BufferOutputStream()
+    pcsv.write_csv(table, sink, write_options=pcsv.WriteOptions(include_header=False, delimiter=" ",
+                                                                 quoting_style="none"))
+    return sink.getvalue().to_pybytes().decode("ascii")
+
+
+def write_bvh(motion: Motion, path: str | os.PathLike, decimals: int = 9) -> Path:
+    """Write ``motion`` as BVH (atomically: temp file, then rename).
+
+    Uses the channel layout the motion was read with (``motion.channels``), else
+    :func:`default_channels`; joints are written in depth-first order. Values are
+    rounded to ``decimals`` decimals.
+    """
+    text = bvh_text(motion, decimals=decimals)
+    path = Path(path)
+    with atomic_output(path) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+    return path

@@ -1,0 +1,288 @@
+"""BVH ``HIERARCHY`` and ``MOTION`` header parsing (iterative, line/column aware).
+
+Produces plain arrays; nothing here knows about rotations. The grammar accepted::
+
+    HIERARCHY
+    ROOT name {                      # name may contain spaces and ':'
+        OFFSET x y z                 # exactly three numbers on the line
+        CHANNELS n name_1 ... name_n # any of X/Y/Z position/rotation, any order
+        JOINT name { ... }           # any depth (no recursion: 10,000 levels are fine)
+        End Site { [OFFSET x y z] }  # the OFFSET may be missing (zero)
+    }
+    MOTION
+    Frames: N
+    Frame Time: dt                   # also "Frame time", "FrameTime", "=" or no colon
+
+Keywords are case-insensitive; braces may share a line with other tokens.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from usdmotion.errors import BvhParseError
+from usdmotion.motion import CHANNEL_NAMES
+
+_TOKEN = re.compile(r"[{}]|[^\s{}]+")
+_CHANNEL_LOOKUP = {c.lower(): c for c in CHANNEL_NAMES}
+_FRAMES = re.compile(r"^\s*frames\s*[:=]?\s*(\S*)\s*$", re.IGNORECASE)
+_FRAME_TIME = re.compile(r"^\s*frame\s*time\s*[:=]?\s*(\S*)\s*$", re.IGNORECASE)
+
+
+@dataclass
+class Token:
+    text: str
+    line: int
+    column: int
+
+
+@dataclass
+class BvhHeader:
+    """The hierarchy and motion header of a BVH file, as plain arrays."""
+
+    joint_names: list[str] = field(default_factory=list)
+    parents: list[int] = field(default_factory=list)
+    offsets: list[tuple[float, float, float]] = field(default_factory=list)
+    channels: list[tuple[str, ...]] = field(default_factory=list)
+    end_sites: list[bool] = field(default_factory=list)
+    name_tokens: list[Token] = field(default_factory=list)
+    n_frames: int = 0
+    frame_time: float = 0.0
+    frames_line: int = 0
+    data_line: int = 0  # 1-based line number where the motion rows start
+    data_offset: int = 0  # character offset of the motion rows in the text
+
+
+class _Cursor:
+    """Token stream over the hierarchy lines with one-token lookahead."""
+
+    def __init__(self, tokens: list[Token], path: str | None):
+        self.tokens = tokens
+        self.pos = 0
+        self.path = path
+
+    def peek(self) -> Token | None:
+        return self.tokens[self.pos] if self.pos < len(self.tokens) else None
+
+    def next(self, expected: str) -> Token:
+        tok = self.peek()
+        if tok is None:
+            last = self.tokens[-1] if self.tokens else Token("", 1, 1)
+            raise BvhParseError(self.path, f"file ends inside the hierarchy, expected {expected}", last.line)
+        self.pos += 1
+        return tok
+
+    def error(self, tok: Token, message: str) -> BvhParseError:
+        return BvhParseError(self.path, message, tok.line, tok.column)
+
+
+def _tokenize(text: str, end: int) -> list[Token]:
+    tokens = []
+    for line_no, line in enumerate(text[:end].split("\n"), start=1):
+        for m in _TOKEN.finditer(line):
+            tokens.append(Token(m.group(0), line_no, m.start() + 1))
+    return tokens
+
+
+def _parse_float(cur: _Cursor, tok: Token, what: str) -> float:
+    try:
+        value = float(tok.text)
+    except ValueError:
+        raise cur.error(tok, f"{what}: {tok.text!r} is not a number") from None
+    if not math.isfinite(value):
+        raise cur.error(tok, f"{what}: {tok.text!r} is not a finite number")
+    return value
+
+
+def _read_offset(cur: _Cursor, keyword: Token) -> tuple[float, float, float]:
+    values = []
+    for k in range(3):
+        tok = cur.next("an OFFSET value")
+        if tok.line != keyword.line or tok.text in "{}":
+            raise cur.error(tok if tok.line == keyword.line else keyword,
+                            f"OFFSET has {k} values, expected 3")
+        values.append(_parse_float(cur, tok, "OFFSET"))
+    extra = cur.peek()
+    if extra is not None and extra.line == keyword.line and extra.text not in "{}":
+        count = 3 + sum(1 for t in cur.tokens[cur.pos:] if t.line == keyword.line and t.text not in "{}")
+        raise cur.error(extra, f"OFFSET has {count} values, expected 3")
+    return values[0], values[1], values[2]
+
+
+def _read_channels(cur: _Cursor, keyword: Token) -> tuple[str, ...]:
+    count_tok = cur.next("the number of CHANNELS")
+    try:
+        count = int(count_tok.text)
+    except ValueError:
+        raise cur.error(count_tok, f"CHANNELS count {count_tok.text!r} is not an integer") from None
+    if not 0 <= count <= 6:
+        raise cur.error(count_tok, f"CHANNELS count {count} is outside 0..6")
+    names = []
+    for k in range(count):
+        tok = cur.peek()
+        name = None if tok is None else _CHANNEL_LOOKUP.get(tok.text.lower())
+        if name is None:
+            where = tok if tok is not None else count_tok
+            raise cur.error(where, f"CHANNELS says {count} but lists {k} channel names"
+                            + ("" if tok is None else f" (then {tok.text!r})"))
+        cur.pos += 1
+        if name in names:
+            raise cur.error(tok, f"channel {name} is listed twice")
+        names.append(name)
+    extra = cur.peek()
+    if extra is not None and extra.line == keyword.line and extra.text.lower() in _CHANNEL_LOOKUP:
+        raise cur.error(extra, f"CHANNELS says {count} but lists more channel names")
+    return tuple(names)
+
+
+def _read_name(cur: _Cursor, keyword: Token) -> tuple[str, Token]:
+    parts = []
+    first = None
+    while (tok := cur.peek()) is not None and tok.line == keyword.line and tok.text not in "{}":
+        parts.append(tok.text)
+        first = first or tok
+        cur.pos += 1
+    if not parts:
+        raise cur.error(keyword, f"{keyword.text} has no name")
+    return " ".join(parts), first
+
+
+def _parse_hierarchy(cur: _Cursor, header: BvhHeader) -> None:
+    """Fill ``header`` from the tokens between HIERARCHY and MOTION (explicit stack)."""
+    first = cur.next("HIERARCHY")
+    if first.text.upper() != "HIERARCHY":
+        raise cur.error(first, f"expected HIERARCHY, found {first.text!r} (is this a BVH file?)")
+    root_kw = cur.next("ROOT")
+    if root_kw.text.upper() != "ROOT":
+        raise cur.error(root_kw, f"expected ROOT, found {root_kw.text!r}")
+    stack: list[int] = []  # open joint blocks (index into header lists)
+    seen_offset: list[bool] = []
+    pending = ("ROOT", root_kw, -1)
+    while True:
+        if pending is not None:
+            kind, kw, parent = pending
+            pending = None
+            if kind == "End":
+                name = header.joint_names[parent] + "_End"
+                name_tok = kw
+            else:
+                name, name_tok = _read_name(cur, kw)
+            brace = cur.next("'{'")
+            if brace.text != "{":
+                raise cur.error(brace, f"expected '{{' after {kw.text} {name}, found {brace.text!r}")
+            header.joint_names.append(name)
+            header.parents.append(parent)
+            header.offsets.append((0.0, 0.0, 0.0))
+            header.channels.append(())
+            header.end_sites.append(kind == "End")
+            header.name_tokens.append(name_tok)
+            stack.append(len(header.joint_names) - 1)
+            seen_offset.append(False)
+        tok = cur.next("'}'")
+        word = tok.text.upper()
+        current = stack[-1]
+        is_end = header.end_sites[current]
+        if word == "OFFSET":
+            if seen_offset[-1]:
+                raise cur.error(tok, f"second OFFSET in {header.joint_names[current]}")
+            header.offsets[current] = _read_offset(cur, tok)
+            seen_offset[-1] = True
+        elif word == "CHANNELS" and not is_end:
+            if header.channels[current]:
+                raise cur.error(tok, f"second CHANNELS in {header.joint_names[current]}")
+            header.channels[current] = _read_channels(cur, tok)
+        elif word == "JOINT" and not is_end:
+            pending = ("JOINT", tok, current)
+        elif word == "END" and not is_end:
+            site = cur.next("Site")
+            if site.text.upper() != "SITE":
+                raise cur.error(site, f"expected 'End Site', found 'End {site.text}'")
+            pending = ("End", tok, current)
+        elif tok.text == "}":
+            if not seen_offset[-1] and not is_end:
+                raise cur.error(tok, f"{header.joint_names[current]} has no OFFSET")
+            stack.pop()
+            seen_offset.pop()
+            if not stack:
+                return
+        elif word == "MOTION":
+            raise cur.error(tok, f"MOTION inside the hierarchy: {len(stack)} '}}' missing")
+        elif word == "ROOT":
+            raise cur.error(tok, "ROOT inside another joint (missing '}')")
+        else:
+            inside = "End Site" if is_end else header.joint_names[current]
+            raise cur.error(tok, f"unexpected {tok.text!r} in {inside}")
+
+
+def parse_header(text: str, path: str | None) -> BvhHeader:
+    """Parse everything before the motion rows. ``text`` uses ``\\n`` line ends."""
+    header = BvhHeader()
+    motion_at = re.search(r"^[ \t]*MOTION[ \t]*$", text, re.IGNORECASE | re.MULTILINE)
+    hierarchy_end = motion_at.start() if motion_at else len(text)
+    cur = _Cursor(_tokenize(text, hierarchy_end), path)
+    if not cur.tokens:
+        raise BvhParseError(path, "no HIERARCHY section (empty or blank file?)", 1)
+    _parse_hierarchy(cur, header)
+    extra = cur.peek()
+    if extra is not None:
+        if extra.text.upper() == "ROOT":
+            raise cur.error(extra, "a second ROOT hierarchy; only one skeleton per file is supported")
+        raise cur.error(extra, f"unexpected {extra.text!r} after the hierarchy (unbalanced braces?)")
+    if motion_at is None:
+        last_line = text.count("\n", 0, hierarchy_end) + 1
+        raise BvhParseError(path, "no MOTION section after the hierarchy", last_line)
+    _parse_motion_header(text, motion_at.end(), header, path)
+    return header
+
+
+def _parse_motion_header(text: str, start: int, header: BvhHeader, path: str | None) -> None:
+    """Read ``Frames:`` and ``Frame Time:`` (any order, blank lines allowed) after MOTION."""
+    line_no = text.count("\n", 0, start) + 1  # the MOTION line
+    nl = text.find("\n", start)
+    pos = len(text) if nl < 0 else nl + 1
+    found: dict[str, tuple[str, int]] = {}
+    while len(found) < 2:
+        what = "Frames:" if "frames" not in found else "Frame Time:"
+        if pos >= len(text):
+            raise BvhParseError(path, f"file ends before '{what}' in the MOTION header", line_no)
+        nl = text.find("\n", pos)
+        end = len(text) if nl < 0 else nl
+        line = text[pos:end]
+        pos = end + 1
+        line_no += 1
+        if not line.strip():
+            continue
+        if (m := _FRAME_TIME.match(line)) and "frame_time" not in found:
+            found["frame_time"] = (m.group(1), line_no)
+        elif (m := _FRAMES.match(line)) and "frames" not in found:
+            found["frames"] = (m.group(1), line_no)
+        else:
+            raise BvhParseError(path, f"expected '{what}', found {line.strip()[:40]!r}", line_no, 1)
+    frames_text, frames_line = found["frames"]
+    try:
+        n_frames = int(frames_text)
+    except ValueError:
+        raise BvhParseError(path, f"Frames: {frames_text!r} is not an integer", frames_line) from None
+    if n_frames < 0:
+        raise BvhParseError(path, f"Frames: {n_frames} is negative", frames_line)
+    time_text, time_line = found["frame_time"]
+    try:
+        frame_time = float(time_text)
+    except ValueError:
+        raise BvhParseError(path, f"Frame Time: {time_text!r} is not a number", time_line) from None
+    if not (math.isfinite(frame_time) and frame_time > 0):
+        raise BvhParseError(path, f"Frame Time: {time_text} must be a positive number of seconds", time_line)
+    header.n_frames = n_frames
+    header.frame_time = frame_time
+    header.frames_line = frames_line
+    header.data_line = line_no + 1
+    header.data_offset = min(pos, len(text))
+
+
+def header_arrays(header: BvhHeader) -> tuple[np.ndarray, np.ndarray]:
+    """``(parents (J,) int32, offsets (J, 3) float64)`` of a parsed header."""
+    return np.asarray(header.parents, dtype=np.int32), np.asarray(header.offsets, dtype=np.float64)

@@ -1,0 +1,131 @@
+"""Forward kinematics over all frames at once, for NumPy and ``jax.numpy`` alike.
+
+The hierarchy is processed one *depth level* at a time (all joints at depth d in one
+vectorised step), so the Python loop runs ``depth`` times, never over frames, and
+``jax.jit`` unrolls a short, fixed graph.
+
+``T_world_joint = T_world_parent @ T_parent_joint`` with
+``T_parent_joint = translate(t_j) @ rotate(q_j)``; positions in file units.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+
+from usdmotion.motion import Motion
+from usdmotion.rotations import array_namespace, quat_mul, quat_rotate, quat_to_matrix
+
+
+@lru_cache(maxsize=256)
+def _levels_cached(parents_key: tuple[int, ...]) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
+    parents = np.asarray(parents_key)
+    depth = np.zeros(len(parents), dtype=np.int64)
+    for j in range(1, len(parents)):
+        depth[j] = depth[parents[j]] + 1
+    levels = []
+    previous = None
+    for d in range(int(depth.max()) + 1):
+        idx = np.flatnonzero(depth == d)
+        if previous is None:
+            parent_pos = np.full(idx.shape, -1)
+        else:
+            position_in_previous = {int(j): k for k, j in enumerate(previous)}
+            parent_pos = np.array([position_in_previous[int(parents[j])] for j in idx])
+        levels.append((idx, parent_pos))
+        previous = idx
+    return tuple(levels)
+
+
+def depth_levels(parents: np.ndarray) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
+    """Joints grouped by depth: ``((idx, parent_position_in_previous_level), ...)``."""
+    return _levels_cached(tuple(int(p) for p in np.asarray(parents)))
+
+
+def fk_arrays(local_rotations, local_translations, parents: np.ndarray):
+    """World rotations and positions from local ones.
+
+    Args:
+        local_rotations: ``(..., J, 4)`` wxyz quaternions, joint relative to parent.
+        local_translations: ``(..., J, 3)`` joint origin in the parent frame (root: world).
+        parents: ``(J,)`` parent indices, parents before children.
+
+    Returns:
+        ``(world_rotations (..., J, 4), world_positions (..., J, 3))``, same array kind
+        as the inputs (NumPy or JAX).
+    """
+    xp = array_namespace(local_rotations, local_translations)
+    levels = depth_levels(parents)
+    root_idx = levels[0][0]
+    q_prev = local_rotations[..., root_idx, :]
+    p_prev = local_translations[..., root_idx, :]
+    q_parts, p_parts, order = [q_prev], [p_prev], [root_idx]
+    for idx, parent_pos in levels[1:]:
+        q_parent = q_prev[..., parent_pos, :]
+        p_parent = p_prev[..., parent_pos, :]
+        q_prev = quat_mul(q_parent, local_rotations[..., idx, :])
+        p_prev = p_parent + quat_rotate(q_parent, local_translations[..., idx, :])
+        q_parts.append(q_prev)
+        p_parts.append(p_prev)
+        order.append(idx)
+    inverse = np.argsort(np.concatenate(order))
+    world_q = xp.concatenate(q_parts, axis=-2)[..., inverse, :]
+    world_p = xp.concatenate(p_parts, axis=-2)[..., inverse, :]
+    return world_q, world_p
+
+
+def local_translations(motion: Motion) -> np.ndarray:
+    """Local translation of every joint at every frame, ``(F, J, 3)`` file units.
+
+    Root: ``root_translation``; joints with position channels: ``joint_translations``;
+    all others: ``offsets``.
+    """
+    if motion.joint_translations is not None:
+        out = np.array(motion.joint_translations)
+    else:
+        out = np.broadcast_to(motion.offsets, (motion.n_frames,) + motion.offsets.shape).copy()
+    out[:, 0] = motion.root_translation
+    return out
+
+
+def world_rotations_positions(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
+    """``(world_rotations (F, J, 4) wxyz, world_positions (F, J, 3))`` of a motion."""
+    return fk_arrays(motion.rotations, local_translations(motion), motion.parents)
+
+
+def joint_positions(motion: Motion) -> np.ndarray:
+    """World position of every joint at every frame, ``(F, J, 3)`` in file units."""
+    return world_rotations_positions(motion)[1]
+
+
+def fk(motion: Motion) -> np.ndarray:
+    """World transforms ``T_world_joint`` ``(F, J, 4, 4)`` (column vectors, file units)."""
+    world_q, world_p = world_rotations_positions(motion)
+    return compose_transforms(world_q, world_p)
+
+
+def compose_transforms(rotations, translations):
+    """4×4 matrices ``(..., 4, 4)`` from wxyz rotations ``(..., 4)`` and translations ``(..., 3)``."""
+    xp = array_namespace(rotations, translations)
+    r = quat_to_matrix(rotations)
+    top = xp.concatenate([r, translations[..., :, None]], axis=-1)
+    bottom = xp.broadcast_to(xp.asarray([0.0, 0.0, 0.0, 1.0], dtype=top.dtype), top.shape[:-2] + (1, 4))
+    return xp.concatenate([top, bottom], axis=-2)
+
+
+def rest_positions(motion: Motion) -> np.ndarray:
+    """World joint positions ``(J, 3)`` of the rest pose (identity rotations, OFFSETs)."""
+    identity = np.zeros((motion.n_joints, 4))
+    identity[:, 0] = 1.0
+    return fk_arrays(identity, motion.offsets, motion.parents)[1]
+
+
+def skeleton_height(motion: Motion, frame: int | None = None) -> float:
+    """Largest extent ``(file units)`` of the joints, at rest or at ``frame``.
+
+    Used to scale tolerances ("1e-4 × the skeleton's height").
+    """
+    points = rest_positions(motion) if frame is None else joint_positions(motion)[frame]
+    extent = float(np.max(np.ptp(points, axis=0)))
+    return extent if extent > 0 else 1.0
