@@ -29,7 +29,7 @@ import numpy as np
 from usdmotion.constants import MAX_FRAMES, METERS_PER_UNIT
 from usdmotion.errors import BvhParseError, UsdMotionWarning
 from usdmotion.io.atomic import atomic_output
-from usdmotion.io.bvh_header import BvhHeader, header_arrays, parse_header
+from usdmotion.io.bvh_header import BvhHeader, frame_rate, header_arrays, parse_header
 from usdmotion.io.bvh_rows import line_of_row, parse_rows
 from usdmotion.motion import POSITION_CHANNELS, ROTATION_CHANNELS, Motion, RootOffset
 from usdmotion.rotations import euler_to_quat, quat_to_euler
@@ -49,6 +49,8 @@ class BvhData:
         channels: per joint, its channel names in file order.
         end_sites: ``(J,)`` bool.
         frame_time: seconds per frame, as written.
+        fps: frames per second (a standard rate when the frame time is its rounding,
+            see :func:`usdmotion.io.bvh_header.frame_rate`).
         values: ``(F, C)`` channel values, degrees and file units.
         path: the file read, for messages.
     """
@@ -59,6 +61,7 @@ class BvhData:
     channels: tuple[tuple[str, ...], ...]
     end_sites: np.ndarray
     frame_time: float
+    fps: float
     values: np.ndarray
     path: str | None = None
 
@@ -144,6 +147,7 @@ def parse_bvh(text: str | bytes, path: str | os.PathLike | None = None, lenient:
         channels=tuple(header.channels),
         end_sites=np.asarray(header.end_sites, dtype=bool),
         frame_time=header.frame_time,
+        fps=frame_rate(header.frame_time_text),
         values=values,
         path=path,
     )
@@ -248,7 +252,7 @@ def motion_from_bvh(data: BvhData, root_offset: str = "auto", meters_per_unit: f
         offsets=data.offsets,
         rotations=rotations,
         root_translation=root_translation,
-        fps=1.0 / data.frame_time,
+        fps=data.fps,
         joint_translations=joint_translations,
         end_sites=data.end_sites,
         meters_per_unit=meters_per_unit,

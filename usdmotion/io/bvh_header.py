@@ -52,6 +52,7 @@ class BvhHeader:
     name_tokens: list[Token] = field(default_factory=list)
     n_frames: int = 0
     frame_time: float = 0.0
+    frame_time_text: str = ""
     frames_line: int = 0
     data_line: int = 0  # 1-based line number where the motion rows start
     data_offset: int = 0  # character offset of the motion rows in the text
@@ -278,6 +279,7 @@ def _parse_motion_header(text: str, start: int, header: BvhHeader, path: str | N
         raise BvhParseError(path, f"Frame Time: {time_text} must be a positive number of seconds", time_line)
     header.n_frames = n_frames
     header.frame_time = frame_time
+    header.frame_time_text = time_text
     header.frames_line = frames_line
     header.data_line = line_no + 1
     header.data_offset = min(pos, len(text))
@@ -286,3 +288,34 @@ def _parse_motion_header(text: str, start: int, header: BvhHeader, path: str | N
 def header_arrays(header: BvhHeader) -> tuple[np.ndarray, np.ndarray]:
     """``(parents (J,) int32, offsets (J, 3) float64)`` of a parsed header."""
     return np.asarray(header.parents, dtype=np.int32), np.asarray(header.offsets, dtype=np.float64)
+
+
+_NTSC_BASES = (24, 30, 48, 60, 120, 240)
+_STANDARD_RATES = (tuple(float(r) for r in range(1, 1001))
+                   + tuple(k * 1000.0 / 1001.0 for k in _NTSC_BASES)
+                   + (23.976, 29.97, 47.952, 59.94, 119.88, 239.76))
+
+
+def frame_rate(frame_time_text: str) -> float:
+    """Frames per second for a ``Frame Time`` as written.
+
+    Exporters round the frame time (``.0083333`` for 120 fps). If a standard rate
+    (integer, or NTSC ``k·1000/1001`` and its decimal forms 23.976, 29.97, ...) has a
+    frame time that, rounded to the decimals written, gives exactly the text, that rate
+    is returned; otherwise ``1 / frame_time``. Texts too short to pin the rate to 0.2 %
+    are taken literally.
+    """
+    frame_time = float(frame_time_text)
+    mantissa = frame_time_text.strip().lower().split("e")[0]
+    if "e" in frame_time_text.lower() or "." not in mantissa:
+        return 1.0 / frame_time
+    decimals = len(mantissa.split(".")[1])
+    if 0.5 * 10.0**-decimals > 2e-3 * frame_time:  # the text does not pin the rate to 0.2 %
+        return 1.0 / frame_time
+    raw = 1.0 / frame_time
+    for rate in sorted(_STANDARD_RATES, key=lambda r: abs(r - raw)):
+        if abs(rate - raw) > 0.01 * raw:
+            break
+        if round(1.0 / rate, decimals) == round(frame_time, decimals):
+            return rate
+    return raw

@@ -1,0 +1,33 @@
+"""Shared fixtures: where the shared BVH corpus lives, and a skip when it is missing."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+SHARED_DATA = Path(os.environ.get("USDMOTION_SHARED_DATA", REPO.parent / "shared" / "data"))
+TEST_DATA = REPO / "tests" / "data"
+
+
+def shared_path(relative: str) -> Path:
+    """Path of a file in ``../shared/data``; skips the test with a reason if it is missing."""
+    path = SHARED_DATA / relative
+    if not path.is_file():
+        pytest.skip(f"shared data file {relative} not found under {SHARED_DATA} "
+                    "(set USDMOTION_SHARED_DATA to the folder holding the shared BVH corpus)")
+    return path
+
+
+@pytest.fixture
+def shared_file():
+    """``shared_file("cmu/cgspeed_12_01_walk.bvh") -> Path`` (skips when absent)."""
+    return shared_path
+
+
+@pytest.fixture(autouse=True, scope="session")
+def _headless_rendering():
+    os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+    yield

@@ -1,0 +1,46 @@
+"""``usdmotion convert IN OUT``: BVH ⇄ UsdSkel (.usda/.usdc/.usdz), BVH → BVH, USD → USD."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from usdmotion.cli._options import InputPath, Lenient, RootOffset, RootOffsetChoice, UpAxis, Units, read_input
+from usdmotion.cli.app import app
+
+
+@app.command()
+def convert(
+    source: InputPath,
+    output: Annotated[Path, typer.Argument(help="Output: .usda, .usdc, .usdz, .usd or .bvh.", show_default=False)],
+    units: Units = None,
+    up_axis: UpAxis = None,
+    root_offset: RootOffset = RootOffsetChoice.auto,
+    lenient: Lenient = False,
+    validate: Annotated[bool, typer.Option(help="Run pxr.UsdValidation on a USD output.")] = True,
+) -> None:
+    """Convert a motion between BVH and OpenUSD (UsdSkel)."""
+    from usdmotion.cli._progress import progress
+    from usdmotion.errors import OutputError
+    from usdmotion.io import write_motion
+
+    if source.resolve() == output.resolve():
+        raise OutputError(f"{output}: output would overwrite the input")
+    start = time.perf_counter()
+    motion = read_input(source, units, up_axis, root_offset, lenient)
+    with progress(f"writing {output.name}"):
+        write_motion(motion, output)
+    problems = []
+    if validate and output.suffix.lower() in (".usd", ".usda", ".usdc", ".usdz"):
+        from usdmotion.io.usd import validate_stage
+
+        problems = validate_stage(str(output))
+        for problem in problems:
+            typer.echo(f"usdmotion: warning: {output}: {problem}", err=True)
+    typer.echo(f"wrote {output}: {int((~motion.end_sites).sum())} joints (+{int(motion.end_sites.sum())} end sites), "
+               f"{motion.n_frames} frames at {motion.fps:.6g} fps ({motion.duration:.2f} s), "
+               f"{motion.meters_per_unit:g} m/unit, {motion.up_axis}-up, root offset {motion.root_offset} "
+               f"[{time.perf_counter() - start:.2f} s]")

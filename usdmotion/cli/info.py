@@ -1,0 +1,60 @@
+"""``usdmotion info FILE``: joints, hierarchy, frames, fps, channels, units, duration."""
+
+from __future__ import annotations
+
+import json
+
+import typer
+
+from usdmotion.cli._options import InputPath, Json, Lenient, RootOffset, RootOffsetChoice, UpAxis, Units, read_input
+from usdmotion.cli.app import app
+
+
+@app.command()
+def info(
+    source: InputPath,
+    units: Units = None,
+    up_axis: UpAxis = None,
+    root_offset: RootOffset = RootOffsetChoice.auto,
+    lenient: Lenient = False,
+    as_json: Json = False,
+) -> None:
+    """Describe a motion file: skeleton, timing, channels and units."""
+    from usdmotion.summary import describe
+
+    summary = describe(read_input(source, units, up_axis, root_offset, lenient))
+    summary = {"file": str(source), **summary}
+    if as_json:
+        typer.echo(json.dumps(summary, indent=2))
+        return
+    _print_summary(summary)
+
+
+def _print_summary(s: dict) -> None:
+    from rich.console import Console
+    from rich.tree import Tree
+
+    console = Console()
+    unit = s["units"] or f"{s['meters_per_unit']:g} m"
+    console.print(f"[bold]{s['file']}[/bold]")
+    console.print(f"  joints      {s['joints']} (+{s['end_sites']} end sites), {s['channels']} channels, "
+                  f"rotation orders {', '.join(f'{k}×{v}' for k, v in s['rotation_orders'].items()) or '-'}")
+    console.print(f"  frames      {s['frames']} at {s['fps']:.6g} fps (frame time {s['frame_time']:.6g} s), "
+                  f"duration {s['duration_s']:.3f} s")
+    console.print(f"  units       {unit} per unit ({s['meters_per_unit']:g} m), {s['up_axis']}-up, "
+                  f"root offset {s['root_offset']}, rest extent {s['rest_extent']:.4g} units "
+                  f"({s['rest_extent_m']:.3g} m)")
+    if s["joints_with_position_channels"]:
+        names = s["joints_with_position_channels"]
+        console.print(f"  positions   on {len(names)} non-root joints: {', '.join(names[:6])}"
+                      + (" …" if len(names) > 6 else ""))
+    nodes: dict[str, Tree] = {}
+    tree = None
+    for joint in s["hierarchy"]:
+        label = joint["name"] + (" [dim](end site)[/dim]" if joint["end_site"] else
+                                 f" [dim]{' '.join(c[:4] for c in joint['channels'])}[/dim]")
+        if joint["parent"] is None:
+            tree = nodes[joint["name"]] = Tree(label)
+        else:
+            nodes[joint["name"]] = nodes[joint["parent"]].add(label)
+    console.print(tree)

@@ -1,0 +1,69 @@
+"""``usdmotion positions FILE``: world joint positions from our forward kinematics."""
+
+from __future__ import annotations
+
+import json
+from typing import Annotated
+
+import numpy as np
+import typer
+
+from usdmotion.cli._options import InputPath, Json, Lenient, RootOffset, RootOffsetChoice, UpAxis, Units, read_input
+from usdmotion.cli.app import app
+
+
+def parse_frames(spec: str, n_frames: int) -> np.ndarray:
+    """Frame indices from ``"all"``, ``"0,10,20"``, ``"100:200"`` or ``"0:100:10"`` (end exclusive)."""
+    spec = spec.strip().lower()
+    if spec == "all":
+        return np.arange(n_frames)
+    frames: list[int] = []
+    for part in spec.split(","):
+        part = part.strip()
+        try:
+            if ":" in part:
+                bits = [int(b) if b.strip() else None for b in part.split(":")]
+                frames.extend(range(n_frames)[slice(*bits)])
+            else:
+                frames.append(int(part))
+        except ValueError:
+            raise ValueError(f"--frames: {part!r} is not a frame number, a range a:b[:step] or 'all'") from None
+    bad = [f for f in frames if not 0 <= f < n_frames]
+    if bad:
+        raise ValueError(f"--frames: frame {bad[0]} is outside 0..{n_frames - 1}")
+    return np.asarray(frames, dtype=np.int64)
+
+
+@app.command()
+def positions(
+    source: InputPath,
+    frames: Annotated[str, typer.Option(help="Frames: 'all', '0,10,20', '100:200' or '0:1000:10'.")] = "0",
+    joints: Annotated[str | None, typer.Option(help="Comma-separated joint names (default: all).")] = None,
+    units: Units = None,
+    up_axis: UpAxis = None,
+    root_offset: RootOffset = RootOffsetChoice.auto,
+    lenient: Lenient = False,
+    as_json: Json = False,
+) -> None:
+    """Print world joint positions (file units; stage units for USD) at chosen frames."""
+    from usdmotion.kinematics import joint_positions
+
+    motion = read_input(source, units, up_axis, root_offset, lenient)
+    selected = parse_frames(frames, motion.n_frames)
+    names = list(motion.joint_names) if joints is None else [n.strip() for n in joints.split(",")]
+    index = [motion.joint_index(n) for n in names]
+    world = joint_positions(motion)[selected][:, index]
+    if as_json:
+        typer.echo(json.dumps({"file": str(source), "meters_per_unit": motion.meters_per_unit,
+                               "up_axis": motion.up_axis, "frames": selected.tolist(), "joints": names,
+                               "positions": np.round(world, 9).tolist()}))
+        return
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table("frame", "joint", "x", "y", "z", title=f"{source.name}: world positions "
+                                                          f"({motion.meters_per_unit:g} m/unit)")
+    for i, f in enumerate(selected):
+        for k, name in enumerate(names):
+            table.add_row(str(f), name, *(f"{v:.4f}" for v in world[i, k]))
+    Console().print(table)
