@@ -141,11 +141,22 @@ def euler_to_quat(angles, order: str):
     """Quaternions ``(..., 4)`` of intrinsic Euler ``angles (..., 3)`` in radians.
 
     ``order="ZXY"`` means ``R = Rz(angles[..., 0]) @ Rx(angles[..., 1]) @ Ry(angles[..., 2])``.
+    Closed form of ``(c1 + s1 e_i)(c2 + s2 e_j)(c3 + s3 e_k)`` with ``e_i e_j = σ e_k``.
     """
     order = check_euler_order(order)
-    q = axis_angle_quat(order[0], angles[..., 0])
-    q = quat_mul(q, axis_angle_quat(order[1], angles[..., 1]))
-    return quat_mul(q, axis_angle_quat(order[2], angles[..., 2]))
+    xp = array_namespace(angles)
+    i, j, k = (AXES.index(a) for a in order)
+    sigma = 1.0 if (j - i) % 3 == 1 else -1.0
+    half = 0.5 * xp.moveaxis(angles, -1, 0)  # (3, ...): contiguous per-axis planes
+    c, s = xp.cos(half), xp.sin(half)
+    c1, c2, c3 = c[0], c[1], c[2]
+    s1, s2, s3 = s[0], s[1], s[2]
+    parts = [None, None, None, None]
+    parts[0] = c1 * c2 * c3 - sigma * (s1 * s2 * s3)
+    parts[1 + i] = s1 * c2 * c3 + sigma * (c1 * s2 * s3)
+    parts[1 + j] = c1 * s2 * c3 - sigma * (s1 * c2 * s3)
+    parts[1 + k] = c1 * c2 * s3 + sigma * (s1 * s2 * c3)
+    return xp.stack(parts, axis=-1)
 
 
 def quat_to_euler(q: np.ndarray, order: str, reference: np.ndarray | None = None) -> np.ndarray:

@@ -20,6 +20,7 @@ Conventions (see README "Conventions"):
 from __future__ import annotations
 
 import os
+import re
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -66,21 +67,53 @@ class BvhData:
     path: str | None = None
 
 
-def _decode(raw: bytes, path: str | None) -> str:
-    if not raw.strip():
-        raise BvhParseError(path, "empty file", 1)
-    if raw.startswith(b"\xef\xbb\xbf"):
-        raw = raw[3:]
+def _utf8_error(raw: bytes, start: int, path: str | None) -> BvhParseError:
+    line = raw.count(b"\n", 0, start) + 1
+    column = start - (raw.rfind(b"\n", 0, start) + 1) + 1
+    return BvhParseError(path, f"not UTF-8 text (byte 0x{raw[start]:02x})", line, column)
+
+
+def _decode_header(raw: bytes, path: str | None) -> str:
+    """The header bytes as text (UTF-8, BOM dropped, ``\r\n``/``\r`` → ``\n``)."""
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:
-        line = raw.count(b"\n", 0, exc.start) + 1
-        column = exc.start - (raw.rfind(b"\n", 0, exc.start) + 1) + 1
-        raise BvhParseError(path, f"not UTF-8 text (byte 0x{raw[exc.start]:02x})", line, column) from None
-    if "\x00" in text[:4096]:
+        raise _utf8_error(raw, exc.start, path) from None
+    if "\x00" in text:
         line = text.count("\n", 0, text.index("\x00")) + 1
         raise BvhParseError(path, "binary data (NUL byte), not a BVH text file", line)
-    return text.replace("\r\n", "\n").replace("\r", "\n") if "\r" in text[:65536] else text
+    return text.replace("\r\n", "\n").replace("\r", "\n") if "\r" in text else text
+
+
+_MOTION_LINE = re.compile(rb"^[ \t]*MOTION[ \t]*\r?$", re.IGNORECASE | re.MULTILINE)
+_FRAMES_LINE = re.compile(rb"^\s*frames\s*[:=]?", re.IGNORECASE)
+_FRAME_TIME_LINE = re.compile(rb"^\s*frame\s*time", re.IGNORECASE)
+
+
+def _split_header(raw: bytes, path: str | None) -> tuple[bytes, bytes]:
+    """``(header bytes, motion-row bytes)``: rows start after the ``Frames:`` and
+    ``Frame Time:`` lines (either order, blank lines allowed) that follow ``MOTION``."""
+    if not raw.strip():
+        raise BvhParseError(path, "empty file", 1)
+    motion = _MOTION_LINE.search(raw)
+    if motion is None:
+        return raw, b""
+    pos = raw.find(b"\n", motion.end())
+    pos = len(raw) if pos < 0 else pos + 1
+    seen = set()
+    while len(seen) < 2 and pos < len(raw):
+        end = raw.find(b"\n", pos)
+        end = len(raw) if end < 0 else end + 1
+        line = raw[pos:end]
+        if _FRAME_TIME_LINE.match(line):
+            seen.add("time")
+        elif _FRAMES_LINE.match(line):
+            seen.add("frames")
+        elif line.strip():
+            pos = end  # keep it in the header: the header parser names this line
+            break
+        pos = end
+    return raw[:pos], raw[pos:]
 
 
 def _unique_names(header: BvhHeader, path: str | None) -> tuple[str, ...]:
@@ -117,10 +150,20 @@ def parse_bvh(text: str | bytes, path: str | os.PathLike | None = None, lenient:
     """
     path = None if path is None else str(path)
     raw = text.encode("utf-8") if isinstance(text, str) else bytes(text)
-    text = _decode(raw, path)
-    header = parse_header(text, path)
+    if raw.startswith(b"\xef\xbb\xbf"):
+        raw = raw[3:]
+    head, data = _split_header(raw, path)
+    header = parse_header(_decode_header(head, path), path)
+    if not data.isascii():
+        start = len(head) + next(k for k, byte in enumerate(data) if byte > 127)
+        try:
+            raw.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            raise _utf8_error(raw, exc.start, path) from None
+        line = raw.count(b"\n", 0, start) + 1
+        raise BvhParseError(path, f"non-ASCII character in the motion data", line,
+                            start - (raw.rfind(b"\n", 0, start) + 1) + 1)
     n_channels = sum(len(c) for c in header.channels)
-    data = text[header.data_offset:].encode("utf-8")
     rows = parse_rows(data, n_channels, header.data_line, path, lenient)
     values = rows.values
     n_rows = values.shape[0]

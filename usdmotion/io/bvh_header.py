@@ -55,16 +55,21 @@ class BvhHeader:
     frame_time_text: str = ""
     frames_line: int = 0
     data_line: int = 0  # 1-based line number where the motion rows start
-    data_offset: int = 0  # character offset of the motion rows in the text
 
 
 class _Cursor:
-    """Token stream over the hierarchy lines with one-token lookahead."""
+    """Token stream over the hierarchy lines with one-token lookahead.
 
-    def __init__(self, tokens: list[Token], path: str | None):
+    ``end_line`` is the line of ``MOTION`` (or the last line), reported when the
+    hierarchy runs out of tokens.
+    """
+
+    def __init__(self, tokens: list[Token], path: str | None, end_line: int, at_motion: bool):
         self.tokens = tokens
         self.pos = 0
         self.path = path
+        self.end_line = end_line
+        self.at_motion = at_motion
 
     def peek(self) -> Token | None:
         return self.tokens[self.pos] if self.pos < len(self.tokens) else None
@@ -183,6 +188,12 @@ def _parse_hierarchy(cur: _Cursor, header: BvhHeader) -> None:
             header.name_tokens.append(name_tok)
             stack.append(len(header.joint_names) - 1)
             seen_offset.append(False)
+        if cur.peek() is None:
+            if cur.at_motion:
+                raise BvhParseError(cur.path, f"MOTION before the hierarchy is closed: {len(stack)} '}}' missing",
+                                    cur.end_line)
+            raise BvhParseError(cur.path, f"file ends inside the hierarchy ({len(stack)} '}}' missing)",
+                                cur.end_line)
         tok = cur.next("'}'")
         word = tok.text.upper()
         current = stack[-1]
@@ -224,7 +235,9 @@ def parse_header(text: str, path: str | None) -> BvhHeader:
     header = BvhHeader()
     motion_at = re.search(r"^[ \t]*MOTION[ \t]*$", text, re.IGNORECASE | re.MULTILINE)
     hierarchy_end = motion_at.start() if motion_at else len(text)
-    cur = _Cursor(_tokenize(text, hierarchy_end), path)
+    last_content_line = len(text[:hierarchy_end].rstrip().split("\n"))
+    end_line = text.count("\n", 0, hierarchy_end) + 1 if motion_at else last_content_line
+    cur = _Cursor(_tokenize(text, hierarchy_end), path, end_line, motion_at is not None)
     if not cur.tokens:
         raise BvhParseError(path, "no HIERARCHY section (empty or blank file?)", 1)
     _parse_hierarchy(cur, header)
@@ -234,8 +247,7 @@ def parse_header(text: str, path: str | None) -> BvhHeader:
             raise cur.error(extra, "a second ROOT hierarchy; only one skeleton per file is supported")
         raise cur.error(extra, f"unexpected {extra.text!r} after the hierarchy (unbalanced braces?)")
     if motion_at is None:
-        last_line = text.count("\n", 0, hierarchy_end) + 1
-        raise BvhParseError(path, "no MOTION section after the hierarchy", last_line)
+        raise BvhParseError(path, "no MOTION section after the hierarchy", last_content_line)
     _parse_motion_header(text, motion_at.end(), header, path)
     return header
 
@@ -282,7 +294,6 @@ def _parse_motion_header(text: str, start: int, header: BvhHeader, path: str | N
     header.frame_time_text = time_text
     header.frames_line = frames_line
     header.data_line = line_no + 1
-    header.data_offset = min(pos, len(text))
 
 
 def header_arrays(header: BvhHeader) -> tuple[np.ndarray, np.ndarray]:

@@ -140,6 +140,8 @@ def parse_rows(buf: bytes, n_channels: int, first_line: int, path: str | None,
     Raises:
         BvhParseError: a row with the wrong number of values or a non-number.
     """
+    if b"\r" in buf and b"\n" not in buf:  # classic-Mac line ends
+        buf = buf.replace(b"\r", b"\n")
     if n_channels == 0:
         lines = [line for line in buf.split(b"\n") if line.strip()]
         if lines:
