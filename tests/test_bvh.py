@@ -227,9 +227,11 @@ def test_write_default_layout_for_a_motion_without_channels(tmp_path):
 
     motion = dataclasses.replace(motion_from_bvh(parse_bvh(SYNTHETIC)), channels=None, source_channels=None)
     path = write_bvh(motion, tmp_path / "default.bvh")
-    back = read_bvh(path, root_offset="replace")
-    assert back.channels[0] == ("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation")
-    assert np.allclose(joint_positions(back), joint_positions(motion), atol=1e-7)
+    for convention in ("add", "replace"):  # zero root OFFSET: both readers agree
+        back = read_bvh(path, root_offset=convention)
+        assert back.channels[0] == ("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation")
+        assert np.allclose(joint_positions(back), joint_positions(motion), atol=1e-7)
+        assert np.allclose(back.offsets[0], 0.0)
 
 
 def test_read_errors_name_the_file():

@@ -19,6 +19,7 @@ Conventions (see README "Conventions"):
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import re
 import warnings
@@ -419,8 +420,19 @@ def _fmt(x: float, decimals: int = 9) -> str:
 
 
 def bvh_text(motion: Motion, decimals: int = 9) -> str:
-    """The BVH file for a motion, as text (``\\n`` line ends)."""
-    channels = motion.channels or default_channels(motion)
+    """The BVH file for a motion, as text (``\\n`` line ends).
+
+    A motion read from BVH is written with its own layout and root-offset convention. A
+    motion without a layout (USD, synthesis) gets :func:`default_channels` and a zero
+    root OFFSET with absolute root positions, which readers of either root-offset
+    convention interpret the same way.
+    """
+    if motion.channels is None:
+        offsets = motion.offsets.copy()
+        offsets[0] = 0.0
+        motion = dataclasses.replace(motion, offsets=offsets, root_offset="add",
+                                     channels=default_channels(motion), source_channels=None)
+    channels = motion.channels
     order = _dfs_order(motion.parents)
     lines = ["HIERARCHY"]
     depth_of = {0: 0}
