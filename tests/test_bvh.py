@@ -240,3 +240,20 @@ def test_read_errors_name_the_file():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         parse_bvh(SYNTHETIC)  # a clean file warns about nothing
+
+
+def test_world_like_joint_position_channels_are_flagged_and_can_be_ignored(shared_file):
+    path = shared_file("other_rigs/ad_karate_mawashigeri.bvh")
+    with pytest.warns(UsdMotionWarning, match="'thorax', 'head' look like world positions"):
+        distorted = read_bvh(path)
+    fixed = read_bvh(path, ignore_joint_positions=True)
+    thorax, parent = fixed.joint_index("thorax"), fixed.parents[fixed.joint_index("thorax")]
+    bone = np.linalg.norm(joint_positions(fixed)[:, thorax] - joint_positions(fixed)[:, parent], axis=1)
+    assert np.allclose(bone, np.linalg.norm(fixed.offsets[thorax]))  # rigid bone with the OFFSET
+    warped = np.linalg.norm(joint_positions(distorted)[:, thorax] - joint_positions(distorted)[:, parent], axis=1)
+    assert np.median(warped) > 5 * np.linalg.norm(fixed.offsets[thorax])
+    for name in ("bandai1/dataset-1_walk_normal_001.bvh", "edge_cases/wspr_milad_blank_line_6ch_125fps.bvh",
+                 "other_rigs/ad_mixamo_Boxing.bvh"):  # channels that are true local translations
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            read_bvh(shared_file(name))

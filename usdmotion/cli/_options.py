@@ -35,15 +35,20 @@ RootOffset = Annotated[RootOffsetChoice, typer.Option(
 Lenient = Annotated[bool, typer.Option(
     "--lenient", help="Keep the complete motion rows when 'Frames:' disagrees or rows are malformed "
                       "(warns instead of failing).")]
+IgnoreJointPositions = Annotated[bool, typer.Option(
+    "--ignore-joint-positions", help="Use the OFFSETs of non-root joints even where they have position channels "
+                                     "(for files whose such channels hold world positions).")]
 Json = Annotated[bool, typer.Option("--json", help="Print JSON instead of a table.")]
 
 
 def read_input(path: Path, units: str | None, up_axis: UpAxisChoice | None,
-               root_offset: RootOffsetChoice = RootOffsetChoice.auto, lenient: bool = False):
+               root_offset: RootOffsetChoice = RootOffsetChoice.auto, lenient: bool = False,
+               ignore_joint_positions: bool = False):
     """Read a motion with the shared CLI options (progress shown for slow files)."""
     from usdmotion.cli._progress import progress
     from usdmotion.io import read_motion
 
     with progress(f"reading {path.name}"):
         return read_motion(path, root_offset=root_offset.value, units=units,
-                           up_axis=None if up_axis is None else up_axis.value, lenient=lenient)
+                           up_axis=None if up_axis is None else up_axis.value, lenient=lenient,
+                           ignore_joint_positions=ignore_joint_positions)

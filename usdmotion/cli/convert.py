@@ -8,7 +8,8 @@ from typing import Annotated
 
 import typer
 
-from usdmotion.cli._options import InputPath, Lenient, RootOffset, RootOffsetChoice, UpAxis, Units, read_input
+from usdmotion.cli._options import (IgnoreJointPositions, InputPath, Lenient, RootOffset, RootOffsetChoice, UpAxis,
+                                    Units, read_input)
 from usdmotion.cli.app import app
 
 
@@ -20,6 +21,7 @@ def convert(
     up_axis: UpAxis = None,
     root_offset: RootOffset = RootOffsetChoice.auto,
     lenient: Lenient = False,
+    ignore_joint_positions: IgnoreJointPositions = False,
     validate: Annotated[bool, typer.Option(help="Run pxr.UsdValidation on a USD output.")] = True,
 ) -> None:
     """Convert a motion between BVH and OpenUSD (UsdSkel)."""
@@ -30,7 +32,7 @@ def convert(
     if source.resolve() == output.resolve():
         raise OutputError(f"{output}: output would overwrite the input")
     start = time.perf_counter()
-    motion = read_input(source, units, up_axis, root_offset, lenient)
+    motion = read_input(source, units, up_axis, root_offset, lenient, ignore_joint_positions)
     with progress(f"writing {output.name}"):
         write_motion(motion, output)
     problems = []

@@ -26,7 +26,7 @@ def _kind(path: Path) -> str | None:
 
 
 def read_motion(path: str | os.PathLike, root_offset: str = "auto", units: str | float | None = None,
-                up_axis: str | None = None, lenient: bool = False) -> Motion:
+                up_axis: str | None = None, lenient: bool = False, ignore_joint_positions: bool = False) -> Motion:
     """Read a BVH or UsdSkel file.
 
     For BVH, ``units`` (default ``"cm"``) and ``up_axis`` (default ``"Y"``) state what the
@@ -40,7 +40,7 @@ def read_motion(path: str | os.PathLike, root_offset: str = "auto", units: str |
         from usdmotion.io.bvh import read_bvh
 
         return read_bvh(path, root_offset=root_offset, units="cm" if units is None else units,
-                        up_axis=up_axis or "Y", lenient=lenient)
+                        up_axis=up_axis or "Y", lenient=lenient, ignore_joint_positions=ignore_joint_positions)
     if kind == "usd":
         from usdmotion.io.bvh import resolve_units
         from usdmotion.io.usd import read_usd

@@ -266,8 +266,37 @@ def guess_root_offset(data: BvhData) -> RootOffset:
     return "replace" if abs(mean - offset[axis]) < abs(mean) else "add"
 
 
+def world_like_position_joints(motion: Motion) -> list[int]:
+    """Non-root joints whose position channels look like *world* positions.
+
+    A joint is flagged when its per-frame translation is nearer the world position it
+    would have with its OFFSET than the OFFSET itself (median over frames), and its
+    parent frame actually moves (a static identity parent at the origin, like Bandai's
+    ``joint_Root``, makes local and world the same thing).
+    """
+    from usdmotion.kinematics import fk_arrays
+
+    if motion.joint_translations is None or motion.n_frames == 0:
+        return []
+    with_offsets = np.broadcast_to(motion.offsets, motion.joint_translations.shape).copy()
+    with_offsets[:, 0] = motion.root_translation
+    world_q, world_p = fk_arrays(motion.rotations, with_offsets, motion.parents)
+    flagged = []
+    moving = np.flatnonzero(np.abs(motion.joint_translations - motion.offsets).max(axis=(0, 2)) > 0)
+    for j in moving[moving > 0]:
+        values = motion.joint_translations[:, j]
+        from_offset = np.median(np.linalg.norm(values - motion.offsets[j], axis=1))
+        from_world = np.median(np.linalg.norm(values - world_p[:, j], axis=1))
+        parent = motion.parents[j]
+        parent_moves = (np.abs(world_p[:, parent]).max() > 1e-9
+                        or np.abs(np.abs(world_q[:, parent, 0]) - 1.0).max() > 1e-9)
+        if parent_moves and from_world < 0.5 * from_offset:
+            flagged.append(int(j))
+    return flagged
+
+
 def motion_from_bvh(data: BvhData, root_offset: str = "auto", meters_per_unit: float = 0.01,
-                    up_axis: str = "Y") -> Motion:
+                    up_axis: str = "Y", ignore_joint_positions: bool = False) -> Motion:
     """Build a :class:`Motion` from parsed BVH arrays.
 
     Args:
@@ -275,6 +304,9 @@ def motion_from_bvh(data: BvhData, root_offset: str = "auto", meters_per_unit: f
         root_offset: ``"auto"``, ``"add"`` or ``"replace"`` (see module docstring).
         meters_per_unit: length of one file unit in metres (BVH does not store it).
         up_axis: ``"Y"`` or ``"Z"``, the file's vertical axis.
+        ignore_joint_positions: use the OFFSETs of non-root joints even where they carry
+            position channels (for files whose such channels hold world positions; a
+            warning names them).
     """
     if root_offset not in ("auto", "add", "replace"):
         raise ValueError(f"root_offset must be 'auto', 'add' or 'replace', got {root_offset!r}")
@@ -290,14 +322,14 @@ def motion_from_bvh(data: BvhData, root_offset: str = "auto", meters_per_unit: f
         joint_translations = np.broadcast_to(data.offsets, (values.shape[0],) + data.offsets.shape).copy()
         for j in moving:
             joint_translations[:, j] = _positions(values, columns[j], data.offsets[j], add=False)
-    return Motion(
+    motion = Motion(
         joint_names=data.joint_names,
         parents=data.parents,
         offsets=data.offsets,
         rotations=rotations,
         root_translation=root_translation,
         fps=data.fps,
-        joint_translations=joint_translations,
+        joint_translations=None if ignore_joint_positions else joint_translations,
         end_sites=data.end_sites,
         meters_per_unit=meters_per_unit,
         up_axis=up_axis,
@@ -305,6 +337,14 @@ def motion_from_bvh(data: BvhData, root_offset: str = "auto", meters_per_unit: f
         root_offset=root_offset,
         source_channels=values,
     )
+    if not ignore_joint_positions:
+        flagged = world_like_position_joints(motion)
+        if flagged:
+            names = ", ".join(repr(motion.joint_names[j]) for j in flagged[:4])
+            warnings.warn(f"{data.path or '<input>'}: position channels of {names} look like world positions, "
+                          "not offsets; the skeleton will look distorted (use --ignore-joint-positions)",
+                          UsdMotionWarning, stacklevel=2)
+    return motion
 
 
 def resolve_units(units: str | float) -> float:
@@ -326,7 +366,7 @@ def resolve_units(units: str | float) -> float:
 
 
 def read_bvh(path: str | os.PathLike, root_offset: str = "auto", units: str | float = "cm",
-             up_axis: str = "Y", lenient: bool = False) -> Motion:
+             up_axis: str = "Y", lenient: bool = False, ignore_joint_positions: bool = False) -> Motion:
     """Read a BVH file into a :class:`Motion` (see :func:`parse_bvh`, :func:`motion_from_bvh`)."""
     path = Path(path)
     try:
@@ -334,7 +374,8 @@ def read_bvh(path: str | os.PathLike, root_offset: str = "auto", units: str | fl
     except OSError as exc:
         raise BvhParseError(path, f"cannot read: {exc.strerror or exc}") from None
     data = parse_bvh(raw, path, lenient=lenient)
-    return motion_from_bvh(data, root_offset=root_offset, meters_per_unit=resolve_units(units), up_axis=up_axis)
+    return motion_from_bvh(data, root_offset=root_offset, meters_per_unit=resolve_units(units), up_axis=up_axis,
+                           ignore_joint_positions=ignore_joint_positions)
 
 
 # --------------------------------------------------------------------------- writing

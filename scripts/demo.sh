@@ -1,0 +1,24 @@
+#!/usr/bin/env bash
+# The main job end to end on the bundled CMU walk (no ../shared needed):
+# set up .venv, inspect the BVH, convert it to DCC-ready UsdSkel (.usda/.usdc/.usdz),
+# convert back to BVH, and check the round trip. Outputs land in out/demo/.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+scripts/setup.sh
+export PYOPENGL_PLATFORM=egl
+U=.venv/bin/usdmotion
+IN=usdmotion/data/cmu_12_01_walk.bvh
+OUT=out/demo
+mkdir -p "$OUT"
+
+echo "== 1. what is in the file"
+$U info "$IN" --units asf | head -12
+echo "== 2. BVH -> OpenUSD (UsdSkel), three encodings"
+for ext in usda usdc usdz; do $U convert "$IN" "$OUT/walk.$ext" --units asf; done
+echo "== 3. USD -> BVH (round trip)"
+$U convert "$OUT/walk.usdz" "$OUT/walk_roundtrip.bvh"
+echo "== 4. same joint positions after the round trip (frame 100, left foot)"
+$U positions "$IN" --frames 100 --joints LeftFoot,RightHand --units asf
+$U positions "$OUT/walk_roundtrip.bvh" --frames 100 --joints LeftFoot,RightHand
+echo "demo outputs in $OUT/:"
+ls -la "$OUT"
