@@ -35,13 +35,13 @@ def _print_summary(s: dict) -> None:
     from rich.tree import Tree
 
     console = Console()
-    unit = s["units"] or f"{s['meters_per_unit']:g} m"
+    unit = f"1 {s['units']}" if s["units"] else f"{s['meters_per_unit']:g} m"
     console.print(f"[bold]{s['file']}[/bold]")
     console.print(f"  joints      {s['joints']} (+{s['end_sites']} end sites), {s['channels']} channels, "
                   f"rotation orders {', '.join(f'{k}×{v}' for k, v in s['rotation_orders'].items()) or '-'}")
     console.print(f"  frames      {s['frames']} at {s['fps']:.6g} fps (frame time {s['frame_time']:.6g} s), "
                   f"duration {s['duration_s']:.3f} s")
-    console.print(f"  units       {unit} per unit ({s['meters_per_unit']:g} m), {s['up_axis']}-up, "
+    console.print(f"  units       1 unit = {unit.removeprefix('1 ')} ({s['meters_per_unit']:g} m), {s['up_axis']}-up, "
                   f"root offset {s['root_offset']}, rest extent {s['rest_extent']:.4g} units "
                   f"({s['rest_extent_m']:.3g} m)")
     if s["joints_with_position_channels"]:
