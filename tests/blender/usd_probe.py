@@ -17,8 +17,8 @@ options (what a user gets from File › Import), then report
   (file descriptors 1 and 2 are captured, so C-level warnings are included);
 * ``scene``: frame_start / frame_end / fps as the import left them;
 * ``armatures``: bone names, parents and rest heads (armature space), the action's frame
-  range and F-curve count, and at every sampled frame the object's ``matrix_world`` and
-  the evaluated head of every pose bone, in armature space *and* in world space;
+  range and F-curve count, and at every sampled frame the object's ``matrix_world`` (and
+  its scale) and the evaluated head of every pose bone, in armature space *and* in world space;
 * ``meshes``: vertex count, vertex groups, per-vertex weights, modifiers (type, target),
   parent, and the evaluated (deformed) world-space vertices at every sampled frame.
 
@@ -134,6 +134,7 @@ def record_frame(bpy, scene, frame: int, armatures: list, meshes: list) -> None:
         heads = [pb.head.copy() for pb in ev.pose.bones]
         info["poses"][str(frame)] = {
             "matrix_world": matrix_list(mw),
+            "scale": vec(mw.to_scale()),
             "heads": [vec(h) for h in heads],
             "world_heads": [vec(mw @ h) for h in heads],
         }
