@@ -6,7 +6,8 @@ Stage layout written::
     /<Name>/Skeleton        Skeleton, SkelBindingAPI, skel:animationSource → Animation
     /<Name>/Animation       SkelAnimation (translations, rotations per frame; scales)
 
-* Joint paths are DCC-safe identifiers (``mixamorig:Hips`` → ``mixamorig_Hips``); the
+* Joint paths are DCC-safe identifiers (``mixamorig:Hips`` → ``mixamorig_Hips``), each
+  last element unique in the skeleton (``a:b`` and ``a_b`` → ``a_b``, ``a_b_2``); the
   original names are kept in ``jointNames`` and in the Skeleton's customData
   ``usdmotion:jointNames``, together with the BVH channel layout, end-site flags and
   root-offset convention, so USD → BVH restores the file it came from.
@@ -47,17 +48,19 @@ def _identifier(name: str) -> str:
 
 
 def joint_path_tokens(joint_names: tuple[str, ...], parents: np.ndarray) -> list[str]:
-    """UsdSkel joint paths (``"Hips/Spine/Chest"``) with valid, sibling-unique names."""
+    """UsdSkel joint paths (``"Hips/Spine/Chest"``) whose last elements are valid identifiers,
+    unique in the whole skeleton, not only among siblings: DCC tools name bones by the last
+    element (Blender renames a repeat to ``a_b.001`` and binds skin weights by that name, so
+    the vertices of the second ``a_b`` lose their weights)."""
     tokens: list[str] = []
-    used: dict[str, set[str]] = {}
+    used: set[str] = set()
     for j, name in enumerate(joint_names):
         parent_path = tokens[parents[j]] if parents[j] >= 0 else ""
-        siblings = used.setdefault(parent_path, set())
         base = _identifier(name)
         leaf, k = base, 2
-        while leaf in siblings:
+        while leaf in used:
             leaf, k = f"{base}_{k}", k + 1
-        siblings.add(leaf)
+        used.add(leaf)
         tokens.append(f"{parent_path}/{leaf}" if parent_path else leaf)
     return tokens
 
