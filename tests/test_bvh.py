@@ -48,6 +48,7 @@ CORPUS = [
 ]
 
 
+@pytest.mark.filterwarnings("ignore:.*look like world positions")  # the karate file: tested below
 @pytest.mark.parametrize(("name", "joints", "end_sites", "channels", "frames", "fps"), CORPUS,
                          ids=[c[0].split("/")[-1] for c in CORPUS])
 def test_corpus_facts_and_lossless_round_trip(shared_file, tmp_path, name, joints, end_sites, channels, frames, fps):
