@@ -244,7 +244,8 @@ def check_length(motion: Motion, source: str | None = None) -> None:
 def segment(motion: Motion, method: str = DEFAULT_METHOD, param: float = DEFAULT_PARAM,
             cutoff_hz: float = DEFAULT_CUTOFF_HZ, penalty: float = DEFAULT_PENALTY,
             min_length_s: float = DEFAULT_MIN_LENGTH_S, speed_weight: float = DEFAULT_SPEED_WEIGHT,
-            roles: Mapping[str, str] | None = None, source: str | None = None) -> Segmentation:
+            roles: Mapping[str, str] | None = None, preset: str | None = None,
+            source: str | None = None) -> Segmentation:
     """Cut ``motion`` into primitive actions.
 
     Args:
@@ -255,6 +256,7 @@ def segment(motion: Motion, method: str = DEFAULT_METHOD, param: float = DEFAULT
         min_length_s: kcpd shortest segment, seconds.
         speed_weight: kcpd weight (seconds) of the angular speeds against the angles.
         roles: ``{role: joint name}`` overrides for the role map.
+        preset: force a role preset (:data:`~usdmotion.ops.roles.PRESET_NAMES`).
         source: file name for messages.
     """
     if method not in METHODS:
@@ -262,7 +264,7 @@ def segment(motion: Motion, method: str = DEFAULT_METHOD, param: float = DEFAULT
     if penalty <= 0 or min_length_s <= 0 or speed_weight < 0:
         raise ValueError("penalty and min-length must be positive, speed weight non-negative")
     check_length(motion, source)
-    role_index = find_roles(motion, overrides=roles, source=source)
+    role_index = find_roles(motion, overrides=roles, preset=preset, source=source)
     angles = angles_from_positions(role_positions(motion, role_index))
     q = norm_signal(angles)
     filtered = lowpass(q, motion.fps, min(cutoff_hz, 0.45 * motion.fps))
