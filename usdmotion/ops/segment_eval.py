@@ -168,3 +168,54 @@ def score_cuts(detected, labels: Labels, tolerance_frames: int) -> Score:
         pairs = tuple((int(detected[i]), int(labels.cuts[k])) for i, k in enumerate(match) if k >= 0)
     return Score(true_positives=len(pairs), detected=int(detected.size), labelled=int(labels.cuts.size),
                  in_region=int(inside.any(axis=1).sum()), pairs=pairs)
+
+
+def synthetic_take(motions: list, blend_s: float = 0.5, source: str | None = None):
+    """Concatenate motions of one skeleton into a take whose cuts are known.
+
+    Between consecutive clips, ``round(blend_s · fps)`` frames blend the last pose of one
+    into the first pose of the next (slerp with smoothstep weights); each clip's root
+    is shifted horizontally to continue where the previous one stopped. The first
+    motion's skeleton (offsets) is used throughout.
+
+    Returns:
+        ``(motion, labels)``: labels have one cut per junction at the middle of the blend,
+        the blend frames as its band.
+
+    Raises:
+        InputError: the motions differ in joints, hierarchy or frame rate.
+    """
+    from usdmotion.motion import Motion
+    from usdmotion.rotations import quat_slerp
+
+    first: Motion = motions[0]
+    for m in motions[1:]:
+        if m.joint_names != first.joint_names or not np.array_equal(m.parents, first.parents):
+            raise InputError(source, "clips to concatenate must share the skeleton (same joints and hierarchy)")
+        if abs(m.fps - first.fps) > 1e-6 * first.fps or (m.joint_translations is None) != (
+                first.joint_translations is None):
+            raise InputError(source, "clips to concatenate must share the frame rate and channel layout")
+    n_blend = max(1, int(round(blend_s * first.fps)))
+    horizontal = np.array([1.0, 0.0, 1.0]) if first.up_axis == "Y" else np.array([1.0, 1.0, 0.0])
+    weights = np.linspace(0.0, 1.0, n_blend + 2)[1:-1]
+    weights = weights * weights * (3.0 - 2.0 * weights)  # smoothstep
+    rot, root, jt, cuts, bands = [first.rotations], [first.root_translation], [first.joint_translations], [], []
+    frames = first.n_frames
+    for m in motions[1:]:
+        shift = (root[-1][-1] - m.root_translation[0]) * horizontal
+        nxt_root = m.root_translation + shift
+        rot.append(quat_slerp(np.broadcast_to(rot[-1][-1], (n_blend,) + rot[-1][-1].shape),
+                              np.broadcast_to(m.rotations[0], (n_blend,) + m.rotations[0].shape),
+                              np.broadcast_to(weights[:, None], (n_blend, first.n_joints))))
+        root.append(root[-1][-1] + weights[:, None] * (nxt_root[0] - root[-1][-1]))
+        if first.joint_translations is not None:
+            jt.append(jt[-1][-1] + weights[:, None, None] * (m.joint_translations[0] - jt[-1][-1]))
+            jt.append(m.joint_translations)
+        rot.append(m.rotations)
+        root.append(nxt_root)
+        bands.append((frames, frames + n_blend - 1))
+        cuts.append(frames + n_blend // 2)
+        frames += n_blend + m.n_frames
+    take = first.with_frames(np.concatenate(rot), np.concatenate(root),
+                             None if first.joint_translations is None else np.concatenate(jt))
+    return take, _labels(cuts, bands, source)
