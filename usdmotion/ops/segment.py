@@ -168,9 +168,10 @@ def local_extrema(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     Flat runs count once (at their first sample), so maxima and minima always alternate.
     """
     slope = np.sign(np.diff(y))
-    last = np.maximum.accumulate(np.where(slope != 0, np.arange(slope.size), 0))
-    slope = slope[last]  # flat steps take the previous slope
-    turn = np.flatnonzero((slope[1:] != slope[:-1]) & (slope[:-1] != 0)) + 1
+    n = slope.size
+    after = np.minimum.accumulate(np.where(slope != 0, np.arange(n), n)[::-1])[::-1]
+    slope = np.where(after < n, slope[np.minimum(after, n - 1)], 0)  # flat steps take the next slope
+    turn = np.flatnonzero((slope[1:] != slope[:-1]) & (slope[:-1] != 0) & (slope[1:] != 0)) + 1
     return turn, slope[turn - 1] > 0
 
 
