@@ -50,7 +50,7 @@ def segment(
 
     motion = read_input(source, units, up_axis, root_offset, lenient)
     seg = run_segmentation(motion, source, method, param, cutoff, penalty, min_length, role, preset)
-    chosen = None if at is None else seg.segment_at(at)
+    chosen = None if at is None else seg.segment_at(at, str(source))
     if out is not None:
         write_segments_json(seg, out, str(source), chosen)
     if plot is not None:

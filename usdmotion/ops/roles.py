@@ -234,6 +234,6 @@ def parse_role_overrides(items: list[str] | None) -> dict[str, str]:
     for item in items or []:
         role, sep, name = item.partition("=")
         if not sep or not role.strip() or not name.strip():
-            raise InputError(None, f"--role {item!r}: expected ROLE=JOINT, e.g. chest=Spine2")
+            raise ValueError(f"--role {item!r}: expected ROLE=JOINT, e.g. chest=Spine2")
         out[role.strip()] = name.strip()
     return out

@@ -85,10 +85,10 @@ class Segmentation:
         ends = np.concatenate([self.cuts - 1, [self.n_frames - 1]]).astype(np.int64)
         return np.stack([starts, ends], axis=1)
 
-    def segment_at(self, frame: int) -> int:
-        """Index of the segment containing ``frame``; ``InputError`` if outside the motion."""
+    def segment_at(self, frame: int, source: str | None = None) -> int:
+        """Index of the segment containing ``frame``; ``InputError`` (naming ``source``) if outside."""
         if not 0 <= frame < self.n_frames:
-            raise InputError(None, f"--at {frame}: frame is outside 0..{self.n_frames - 1}")
+            raise InputError(source, f"--at {frame}: frame is outside 0..{self.n_frames - 1}")
         return int(np.searchsorted(self.cuts, frame, side="right"))
 
     def to_dict(self) -> dict:
