@@ -12,7 +12,7 @@ from usdmotion.motion import Motion
 from usdmotion.ops import roles as R
 from usdmotion.ops import segment as S
 from usdmotion.ops.segment_eval import Labels, load_labels, score_cuts, synthetic_take
-from usdmotion.rotations import axis_angle_quat, quat_mul
+from usdmotion.rotations import axis_angle_quat
 
 # A tiny humanoid: limbs hang along -Y, the spine points +Y, so every bone angle is π at rest.
 NAMES = ("Hips", "Chest", "LeftArm", "LeftForeArm", "LeftHand", "RightArm", "RightForeArm", "RightHand",
