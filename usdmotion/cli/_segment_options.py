@@ -1,0 +1,66 @@
+"""Options and output shared by ``segment`` and ``segment-eval``."""
+
+from __future__ import annotations
+
+import json
+from enum import Enum
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+
+class MethodChoice(str, Enum):
+    kcpd = "kcpd"
+    heuristic = "heuristic"
+
+
+Method = Annotated[MethodChoice, typer.Option(
+    help="kcpd: kernel change points on the 8 bone angles and their speeds; heuristic: the paper's swing-ratio "
+         "candidates on the low-passed norm signal.", case_sensitive=False)]
+Param = Annotated[float, typer.Option(min=0.0, max=1.0, help="heuristic: swing-ratio threshold (paper: 0.5).")]
+Cutoff = Annotated[float, typer.Option(help="Low-pass cut-off of the norm signal, Hz (heuristic, plot).")]
+Penalty = Annotated[float, typer.Option(help="kcpd: cost of one cut (larger: fewer cuts).")]
+MinLength = Annotated[float, typer.Option(help="kcpd: shortest segment, seconds.")]
+Roles = Annotated[list[str] | None, typer.Option(
+    "--role", help="Name a role's joint, e.g. --role chest=Spine2 (repeatable). Roles: root, chest, "
+                   "left_/right_ shoulder, elbow, wrist, hip, knee, ankle.", show_default=False)]
+Preset = Annotated[str | None, typer.Option(
+    help="Role preset: cgspeed-mb, cgspeed-max, daz, bandai, mixamo, asf (default: detect, else guess by name).",
+    show_default=False)]
+
+
+def run_segmentation(motion, source: Path, method: MethodChoice, param: float, cutoff: float, penalty: float,
+                     min_length: float, role: list[str] | None, preset: str | None):
+    """Find roles and cut ``motion`` (errors name ``source``)."""
+    from usdmotion.cli._progress import progress
+    from usdmotion.ops.roles import parse_role_overrides
+    from usdmotion.ops.segment import segment
+
+    with progress(f"segmenting {source.name}"):
+        return segment(motion, method=method.value, param=param, cutoff_hz=cutoff, penalty=penalty,
+                       min_length_s=min_length, roles=parse_role_overrides(role), preset=preset,
+                       source=str(source))
+
+
+def print_segments(seg, source: Path, chosen: int | None, as_json: bool, clips: list[Path]) -> None:
+    """Table (or JSON) of the segments; only ``chosen`` when given."""
+    doc = seg.to_dict()
+    rows = doc["segments"] if chosen is None else [doc["segments"][chosen]]
+    if as_json:
+        typer.echo(json.dumps({"file": str(source), **doc, "segments": rows,
+                               "clips": [str(c) for c in clips]}, indent=2))
+        return
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table("#", "first frame", "last frame", "frames", "start (s)", "end (s)", "duration (s)",
+                  title=f"{source.name}: {len(doc['segments'])} segments ({seg.method}, "
+                        f"{', '.join(f'{k}={v:g}' for k, v in seg.params.items())})")
+    for s in rows:
+        table.add_row(str(s["index"]), str(s["start_frame"]), str(s["end_frame"]), str(s["frames"]),
+                      f"{s['start_time']:.3f}", f"{s['end_time']:.3f}", f"{s['frames'] / seg.fps:.3f}")
+    console = Console(width=120)
+    console.print(table)
+    for c in clips:
+        console.print(f"wrote {c}")

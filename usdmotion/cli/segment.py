@@ -1,0 +1,62 @@
+"""``usdmotion segment IN``: cut a long take into primitive actions (bone-angle feature)."""
+
+from __future__ import annotations
+
+from enum import Enum
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from usdmotion.cli._options import InputPath, Json, Lenient, RootOffset, RootOffsetChoice, UpAxis, Units, read_input
+from usdmotion.cli._segment_options import (Cutoff, MinLength, Method, MethodChoice, Param, Penalty, Preset, Roles,
+                                            print_segments, run_segmentation)
+from usdmotion.cli.app import app
+
+
+class ClipFormat(str, Enum):
+    bvh = "bvh"
+    usda = "usda"
+    usdc = "usdc"
+
+
+@app.command()
+def segment(
+    source: InputPath,
+    method: Method = MethodChoice.kcpd,
+    param: Param = 0.5,
+    cutoff: Cutoff = 2.0,
+    penalty: Penalty = 6.0,
+    min_length: MinLength = 1.0,
+    role: Roles = None,
+    preset: Preset = None,
+    out: Annotated[Path | None, typer.Option(help="Write the segments as JSON here.", show_default=False)] = None,
+    plot: Annotated[Path | None, typer.Option(help="Plot the signal and the cuts (.png, .svg, .pdf).",
+                                              show_default=False)] = None,
+    export_clips: Annotated[Path | None, typer.Option(help="Write one clip per segment into this folder.",
+                                                      show_default=False)] = None,
+    clip_format: Annotated[ClipFormat, typer.Option("--format", help="Clip format.")] = ClipFormat.bvh,
+    at: Annotated[int | None, typer.Option(help="Keep only the action containing this frame (0-based).",
+                                           show_default=False)] = None,
+    units: Units = None,
+    up_axis: UpAxis = None,
+    root_offset: RootOffset = RootOffsetChoice.auto,
+    lenient: Lenient = False,
+    as_json: Json = False,
+) -> None:
+    """Segment a motion into primitive actions; export the segments, a plot and clips."""
+    from usdmotion.ops.segment_io import export_clips as write_clips
+    from usdmotion.ops.segment_io import plot_segmentation, write_segments_json
+
+    motion = read_input(source, units, up_axis, root_offset, lenient)
+    seg = run_segmentation(motion, source, method, param, cutoff, penalty, min_length, role, preset)
+    chosen = None if at is None else seg.segment_at(at, str(source))
+    if out is not None:
+        write_segments_json(seg, out, str(source), chosen)
+    if plot is not None:
+        plot_segmentation(seg, plot, f"{source.name}: {seg.method}, {len(seg.bounds())} segments", chosen)
+    clips = []
+    if export_clips is not None:
+        clips = write_clips(motion, seg, export_clips, clip_format.value, source.stem,
+                            None if chosen is None else [chosen])
+    print_segments(seg, source, chosen, as_json, clips)

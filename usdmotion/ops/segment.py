@@ -1,0 +1,302 @@
+"""Segmentation of long captures into primitive actions (ALGORITHMS.md §3).
+
+Feature (the paper's): for each frame, the angles between the eight limb bones (upper
+arm, forearm, thigh, shank; left and right) and the centre bone Root → Chest,
+``θ_k = arccos(B_k·B_c / (‖B_k‖‖B_c‖))``, and the 1-D signal ``Q = ‖θ‖``.
+
+Two detectors:
+
+* ``"heuristic"`` — the paper's candidate cuts, implemented per its evident intent:
+  low-pass ``Q`` (zero-phase Butterworth), find the local extrema (alternating maxima and
+  minima), and keep an extremum when the swings to its two neighbouring extrema differ
+  strongly, ``min(s1, s2) <= param · max(s1, s2)``. (The published pseudocode compares the
+  extremum *flags* instead of signal values and returns an undefined variable.)
+* ``"kcpd"`` — kernel change-point detection (Harchaoui & Cappé 2007; Arlot, Celisse &
+  Harchaoui, JMLR 2019) on the 8-D bone angles plus their absolute angular speeds,
+  averaged to 10 Hz: a Gaussian-kernel cost (median-heuristic bandwidth) and a linear
+  penalty per cut, solved exactly by PELT (``ruptures.KernelCPD``). It finds changes in
+  the *distribution* of poses and speeds, so the oscillation inside a cyclic action
+  (walking, jumping jacks) does not trigger cuts.
+
+Frames are 0-based indices; a *cut* ``c`` starts a new segment at frame ``c``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from usdmotion.errors import InputError
+from usdmotion.kinematics import fk_arrays, local_translations
+from usdmotion.motion import Motion
+from usdmotion.ops.roles import LIMB_BONES, find_roles
+
+METHODS = ("kcpd", "heuristic")
+DEFAULT_METHOD = "kcpd"
+#: The paper's swing-ratio threshold (0 <= param <= 1).
+DEFAULT_PARAM = 0.5
+#: Low-pass cut-off of the norm signal (Hz) for the heuristic and the plot.
+DEFAULT_CUTOFF_HZ = 2.0
+#: Kernel change-point defaults: penalty per cut, speed weight (s), minimum segment (s), rate (Hz).
+DEFAULT_PENALTY = 6.0
+DEFAULT_SPEED_WEIGHT = 0.25
+DEFAULT_MIN_LENGTH_S = 1.0
+KCPD_RATE_HZ = 10.0
+#: Shortest motion accepted, in seconds and frames.
+MIN_DURATION_S = 1.0
+MIN_FRAMES = 16
+_GAMMA_SAMPLE = 2000  # samples used for the median-heuristic bandwidth
+
+
+@dataclass(frozen=True)
+class Segmentation:
+    """Cuts of one motion and the signals they were found on.
+
+    Attributes:
+        cuts: ``(K,)`` sorted frame indices in ``1 .. n_frames-1``; cut ``c`` starts a segment.
+        n_frames: frames of the motion.
+        fps: frames per second.
+        method: ``"kcpd"`` or ``"heuristic"``.
+        params: the detector's parameters (JSON-ready).
+        angles: ``(F, 8)`` bone angles θ in radians, order of :data:`~usdmotion.ops.roles.LIMB_BONES`.
+        signal: ``(F,)`` the norm signal ``Q = ‖θ‖``.
+        filtered: ``(F,)`` ``Q`` after the low-pass filter.
+        candidates: ``(C,)`` the paper's candidate cuts on ``filtered`` (for the plot).
+        roles: ``{role: joint name}`` used for the feature.
+    """
+
+    cuts: np.ndarray
+    n_frames: int
+    fps: float
+    method: str
+    params: dict = field(default_factory=dict)
+    angles: np.ndarray | None = field(default=None, repr=False)
+    signal: np.ndarray | None = field(default=None, repr=False)
+    filtered: np.ndarray | None = field(default=None, repr=False)
+    candidates: np.ndarray | None = field(default=None, repr=False)
+    roles: dict = field(default_factory=dict)
+
+    def bounds(self) -> np.ndarray:
+        """``(S, 2)`` first and last frame (inclusive) of every segment."""
+        starts = np.concatenate([[0], self.cuts]).astype(np.int64)
+        ends = np.concatenate([self.cuts - 1, [self.n_frames - 1]]).astype(np.int64)
+        return np.stack([starts, ends], axis=1)
+
+    def segment_at(self, frame: int, source: str | None = None) -> int:
+        """Index of the segment containing ``frame``; ``InputError`` (naming ``source``) if outside."""
+        if not 0 <= frame < self.n_frames:
+            raise InputError(source, f"--at {frame}: frame is outside 0..{self.n_frames - 1}")
+        return int(np.searchsorted(self.cuts, frame, side="right"))
+
+    def to_dict(self) -> dict:
+        """JSON-ready description (``schemas/segments.schema.json``)."""
+        segments = [
+            {"index": i, "start_frame": int(a), "end_frame": int(b), "frames": int(b - a + 1),
+             "start_time": round(a / self.fps, 6), "end_time": round(b / self.fps, 6)}
+            for i, (a, b) in enumerate(self.bounds())
+        ]
+        return {"method": self.method, "params": dict(self.params), "fps": self.fps, "frames": self.n_frames,
+                "roles": dict(self.roles), "cuts": [int(c) for c in self.cuts], "segments": segments}
+
+
+# --------------------------------------------------------------------------- feature
+
+
+def _needed_joints(parents: np.ndarray, joints: list[int]) -> np.ndarray:
+    keep = np.zeros(len(parents), bool)
+    for j in joints:
+        while j >= 0 and not keep[j]:
+            keep[j] = True
+            j = int(parents[j])
+    return np.flatnonzero(keep)
+
+
+def role_positions(motion: Motion, roles: Mapping[str, int]) -> dict[str, np.ndarray]:
+    """World positions ``(F, 3)`` of every role joint, by forward kinematics restricted to
+    the joints on their paths to the root."""
+    keep = _needed_joints(motion.parents, list(roles.values()))
+    remap = np.full(motion.n_joints, -1)
+    remap[keep] = np.arange(keep.size)
+    sub_parents = np.where(motion.parents[keep] >= 0, remap[motion.parents[keep]], -1)
+    _, world = fk_arrays(motion.rotations[:, keep], local_translations(motion)[:, keep], sub_parents)
+    return {role: world[:, remap[j]] for role, j in roles.items()}
+
+
+def angles_from_positions(positions: Mapping[str, np.ndarray]) -> np.ndarray:
+    """``(F, 8)`` angles (radians) between the limb bones and the centre bone Root → Chest.
+
+    A zero-length bone (coincident joints) gives angle π/2 rather than NaN.
+    """
+    centre = positions["chest"] - positions["root"]
+    bones = np.stack([positions[b] - positions[a] for _, a, b in LIMB_BONES], axis=1)
+    dots = np.einsum("fkd,fd->fk", bones, centre)
+    norms = np.linalg.norm(bones, axis=-1) * np.linalg.norm(centre, axis=-1)[:, None]
+    cos = np.divide(dots, norms, out=np.zeros_like(dots), where=norms > 0)
+    return np.arccos(np.clip(cos, -1.0, 1.0))
+
+
+def bone_angles(motion: Motion, roles: Mapping[str, int] | None = None, source: str | None = None) -> np.ndarray:
+    """The paper's 8-D bone-angle feature ``(F, 8)`` in radians."""
+    roles = find_roles(motion, source=source) if roles is None else roles
+    return angles_from_positions(role_positions(motion, roles))
+
+
+def norm_signal(angles: np.ndarray) -> np.ndarray:
+    """``Q_i = ‖θ_i‖`` ``(F,)``."""
+    return np.linalg.norm(angles, axis=-1)
+
+
+def lowpass(x: np.ndarray, fps: float, cutoff_hz: float = DEFAULT_CUTOFF_HZ, order: int = 2) -> np.ndarray:
+    """Zero-phase Butterworth low-pass of ``x`` along axis 0 (no lag, so extrema stay put)."""
+    from scipy import signal
+
+    if not 0 < cutoff_hz < fps / 2:
+        raise ValueError(f"low-pass cut-off must be in (0, {fps / 2:g}) Hz (half the frame rate), got {cutoff_hz}")
+    sos = signal.butter(order, cutoff_hz, fs=fps, output="sos")
+    return signal.sosfiltfilt(sos, x, axis=0)
+
+
+# --------------------------------------------------------------------------- paper heuristic
+
+
+def local_extrema(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(index, is_max)`` of the strict local extrema of ``y``, alternating max/min.
+
+    Flat runs count once (at their first sample), so maxima and minima always alternate.
+    """
+    slope = np.sign(np.diff(y))
+    n = slope.size
+    after = np.minimum.accumulate(np.where(slope != 0, np.arange(n), n)[::-1])[::-1]
+    slope = np.where(after < n, slope[np.minimum(after, n - 1)], 0)  # flat steps take the next slope
+    turn = np.flatnonzero((slope[1:] != slope[:-1]) & (slope[:-1] != 0) & (slope[1:] != 0)) + 1
+    return turn, slope[turn - 1] > 0
+
+
+def swing_candidates(y: np.ndarray, param: float = DEFAULT_PARAM) -> np.ndarray:
+    """The paper's candidate cuts: extrema whose two swings differ by more than ``param``.
+
+    For extremum ``e`` with neighbouring opposite extrema ``l`` and ``r``:
+    ``s1 = |y[l] − y[e]|``, ``s2 = |y[r] − y[e]|``; ``e`` is a candidate when
+    ``min(s1, s2) <= param · max(s1, s2)``. The first and last extrema have one
+    neighbour only and are skipped.
+    """
+    if not 0.0 <= param <= 1.0:
+        raise ValueError(f"param must be within 0..1, got {param}")
+    idx, _ = local_extrema(y)
+    if idx.size < 3:
+        return np.zeros(0, np.int64)
+    v = y[idx]
+    s1 = np.abs(v[1:-1] - v[:-2])
+    s2 = np.abs(v[1:-1] - v[2:])
+    keep = np.minimum(s1, s2) <= param * np.maximum(s1, s2)
+    return idx[1:-1][keep].astype(np.int64)
+
+
+# --------------------------------------------------------------------------- kernel change points
+
+
+def pooled_features(angles: np.ndarray, fps: float, speed_weight: float = DEFAULT_SPEED_WEIGHT,
+                    rate_hz: float = KCPD_RATE_HZ) -> tuple[np.ndarray, int]:
+    """``(X (N, 16), pool)``: angles and ``speed_weight``·|dθ/dt| averaged over blocks of
+    ``pool`` frames (``pool ≈ fps / rate_hz``)."""
+    pool = max(1, int(round(fps / rate_hz)))
+    speed = np.abs(np.gradient(angles, axis=0)) * fps * speed_weight
+    feats = np.concatenate([angles, speed], axis=1)
+    n = feats.shape[0] // pool
+    return feats[: n * pool].reshape(n, pool, -1).mean(axis=1), pool
+
+
+def median_gamma(x: np.ndarray, limit: int = _GAMMA_SAMPLE) -> float:
+    """``1 / median squared distance`` of the rows of ``x`` (a strided sample of at most ``limit``)."""
+    from scipy.spatial.distance import pdist
+
+    step = max(1, math.ceil(x.shape[0] / limit))
+    d2 = pdist(x[::step], "sqeuclidean")
+    med = float(np.median(d2)) if d2.size else 0.0
+    return 1.0 / med if med > 0 else 1.0
+
+
+def kernel_change_points(x: np.ndarray, penalty: float = DEFAULT_PENALTY, min_size: int = 10,
+                         gamma: float | None = None) -> np.ndarray:
+    """Change points of the rows of ``x`` (Gaussian-kernel cost, PELT); sample indices."""
+    import ruptures
+
+    if x.shape[0] < 2 * min_size:
+        return np.zeros(0, np.int64)
+    gamma = median_gamma(x) if gamma is None else gamma
+    algo = ruptures.KernelCPD(kernel="rbf", min_size=min_size, params={"gamma": gamma}).fit(x)
+    return np.asarray(algo.predict(pen=penalty)[:-1], dtype=np.int64)
+
+
+# --------------------------------------------------------------------------- driver
+
+
+def check_length(motion: Motion, source: str | None = None) -> None:
+    """``InputError`` when ``motion`` is too short to segment."""
+    need = max(MIN_FRAMES, math.ceil(MIN_DURATION_S * motion.fps))
+    if motion.n_frames < need:
+        raise InputError(source, f"motion too short to segment: {motion.n_frames} frames "
+                                 f"({motion.duration:.2f} s), need at least {need} ({MIN_DURATION_S:g} s)")
+
+
+def segment(motion: Motion, method: str = DEFAULT_METHOD, param: float = DEFAULT_PARAM,
+            cutoff_hz: float = DEFAULT_CUTOFF_HZ, penalty: float = DEFAULT_PENALTY,
+            min_length_s: float = DEFAULT_MIN_LENGTH_S, speed_weight: float = DEFAULT_SPEED_WEIGHT,
+            roles: Mapping[str, str] | None = None, preset: str | None = None,
+            source: str | None = None) -> Segmentation:
+    """Cut ``motion`` into primitive actions.
+
+    Args:
+        method: ``"kcpd"`` (kernel change points, default) or ``"heuristic"`` (the paper's).
+        param: the heuristic's swing-ratio threshold, 0..1.
+        cutoff_hz: low-pass cut-off of ``Q`` (heuristic, plot).
+        penalty: kcpd cost per cut (larger: fewer cuts).
+        min_length_s: kcpd shortest segment, seconds.
+        speed_weight: kcpd weight (seconds) of the angular speeds against the angles.
+        roles: ``{role: joint name}`` overrides for the role map.
+        preset: force a role preset (:data:`~usdmotion.ops.roles.PRESET_NAMES`).
+        source: file name for messages.
+    """
+    if method not in METHODS:
+        raise ValueError(f"unknown method {method!r} (use {', '.join(METHODS)})")
+    if penalty <= 0 or min_length_s <= 0 or speed_weight < 0:
+        raise ValueError("penalty and min-length must be positive, speed weight non-negative")
+    check_length(motion, source)
+    role_index = find_roles(motion, overrides=roles, preset=preset, source=source)
+    angles = angles_from_positions(role_positions(motion, role_index))
+    q = norm_signal(angles)
+    filtered = lowpass(q, motion.fps, min(cutoff_hz, 0.45 * motion.fps))
+    candidates = swing_candidates(filtered, param)
+    if method == "heuristic":
+        cuts = candidates
+        params = {"param": param, "cutoff_hz": cutoff_hz}
+    else:
+        x, pool = pooled_features(angles, motion.fps, speed_weight)
+        min_size = max(2, math.ceil(min_length_s * motion.fps / pool))
+        cuts = kernel_change_points(x, penalty, min_size) * pool
+        params = {"penalty": penalty, "min_length_s": min_length_s, "speed_weight": speed_weight,
+                  "rate_hz": motion.fps / pool}
+    cuts = np.unique(cuts[(cuts > 0) & (cuts < motion.n_frames)])
+    names = {r: motion.joint_names[j] for r, j in role_index.items()}
+    return Segmentation(cuts=cuts, n_frames=motion.n_frames, fps=motion.fps, method=method, params=params,
+                        angles=angles, signal=q, filtered=filtered, candidates=candidates, roles=names)
+
+
+def clip(motion: Motion, first: int, last: int) -> Motion:
+    """Frames ``first..last`` (inclusive) of ``motion`` as a new motion.
+
+    Keeps the BVH channel values of those frames (``source_channels``), so a clip written
+    as BVH repeats the input's numbers.
+    """
+    if not 0 <= first <= last < motion.n_frames:
+        raise ValueError(f"clip {first}..{last} is outside 0..{motion.n_frames - 1}")
+    sl = slice(first, last + 1)
+    jt = None if motion.joint_translations is None else motion.joint_translations[sl]
+    sc = None if motion.source_channels is None else motion.source_channels[sl]
+    import dataclasses
+
+    return dataclasses.replace(motion, rotations=motion.rotations[sl], root_translation=motion.root_translation[sl],
+                               joint_translations=jt, source_channels=sc)

@@ -1,0 +1,102 @@
+"""Outputs of a segmentation: ``segments.json``, the signal plot, and one clip per segment.
+
+Every file goes through :func:`usdmotion.io.atomic.atomic_output` (or the atomic
+motion writers), so a failure never leaves a partial file.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from usdmotion.errors import OutputError
+from usdmotion.io.atomic import atomic_output
+from usdmotion.motion import Motion
+from usdmotion.ops.roles import LIMB_BONES
+from usdmotion.ops.segment import Segmentation, clip
+
+CLIP_FORMATS = ("bvh", "usda", "usdc")
+
+
+def write_segments_json(seg: Segmentation, path: str | os.PathLike, source: str | None = None,
+                        selected: int | None = None) -> Path:
+    """Write ``seg.to_dict()`` (plus ``file`` and the ``selected`` segment) as JSON."""
+    doc = {"file": source, **seg.to_dict()}
+    if selected is not None:
+        doc["selected"] = selected
+    with atomic_output(path) as tmp:
+        tmp.write_text(json.dumps(doc, indent=2) + "\n", encoding="utf-8")
+    return Path(path)
+
+
+def plot_segmentation(seg: Segmentation, path: str | os.PathLike, title: str = "",
+                      highlight: int | None = None) -> Path:
+    """PNG/SVG/PDF: the norm signal, its low-passed version, the paper's candidates, the cuts
+    (dashed) over shaded segments, and the eight bone angles below."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from matplotlib.figure import Figure
+
+    t = np.arange(seg.n_frames) / seg.fps
+    fig = Figure(figsize=(12, 5.5), layout="constrained")
+    top, bottom = fig.subplots(2, 1, sharex=True, height_ratios=[3, 2])
+    for i, (a, b) in enumerate(seg.bounds()):
+        color = "tab:orange" if i == highlight else ("0.92" if i % 2 else "white")
+        top.axvspan(a / seg.fps, (b + 1) / seg.fps, color=color, alpha=0.35 if i == highlight else 1, lw=0)
+    top.plot(t, np.degrees(seg.signal), color="0.65", lw=0.8, label="Q = ‖θ‖ (deg)")
+    top.plot(t, np.degrees(seg.filtered), color="tab:blue", lw=1.4, label="low-passed Q")
+    if seg.candidates is not None and seg.candidates.size:
+        c = seg.candidates
+        top.plot(c / seg.fps, np.degrees(seg.filtered[c]), "v", color="tab:green", ms=4,
+                 label=f"paper candidates ({c.size})")
+    for k, c in enumerate(seg.cuts):
+        top.axvline(c / seg.fps, color="tab:red", ls="--", lw=1.2, label=f"cuts ({seg.cuts.size})" if k == 0 else None)
+    top.set_ylabel("norm signal (deg)")
+    top.legend(loc="lower left", bbox_to_anchor=(0, 1.0), fontsize=8, ncol=4, frameon=False)
+    fig.suptitle(title or f"{seg.method}: {len(seg.bounds())} segments", fontsize=10)
+    image = bottom.imshow(np.degrees(seg.angles.T), aspect="auto", cmap="viridis", interpolation="nearest",
+                          extent=(0, seg.n_frames / seg.fps, len(LIMB_BONES) - 0.5, -0.5))
+    bottom.set_yticks(range(len(LIMB_BONES)), [b[0].replace("_", " ") for b in LIMB_BONES], fontsize=7)
+    for c in seg.cuts:
+        bottom.axvline(c / seg.fps, color="white", ls="--", lw=1)
+    bottom.set_xlabel("time (s)")
+    fig.colorbar(image, ax=bottom, label="bone angle (deg)", pad=0.01)
+    path = Path(path)
+    with atomic_output(path) as tmp:
+        try:
+            fig.savefig(tmp, dpi=110, format=path.suffix.lstrip(".").lower() or "png")
+        except ValueError as exc:
+            raise OutputError(f"{path}: cannot write a plot: {exc}") from None
+    return path
+
+
+def clip_paths(seg: Segmentation, folder: Path, stem: str, fmt: str, indices: Sequence[int]) -> list[Path]:
+    """File names ``<stem>_<index>_<first>-<last>.<fmt>`` of the clips of ``indices``."""
+    bounds = seg.bounds()
+    width = max(3, len(str(len(bounds) - 1)))
+    return [folder / f"{stem}_{i:0{width}d}_{bounds[i][0]}-{bounds[i][1]}.{fmt}" for i in indices]
+
+
+def export_clips(motion: Motion, seg: Segmentation, folder: str | os.PathLike, fmt: str = "bvh",
+                 stem: str = "clip", indices: Sequence[int] | None = None) -> list[Path]:
+    """Write one motion file per segment (or per segment in ``indices``); returns the paths."""
+    from usdmotion.io import write_motion
+
+    if fmt not in CLIP_FORMATS:
+        raise OutputError(f"unknown clip format {fmt!r} (use {', '.join(CLIP_FORMATS)})")
+    folder = Path(folder)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OutputError(f"{folder}: cannot create the clip folder: {exc.strerror or exc}") from None
+    indices = range(len(seg.bounds())) if indices is None else indices
+    paths = clip_paths(seg, folder, stem, fmt, indices)
+    bounds = seg.bounds()
+    for i, path in zip(indices, paths):
+        write_motion(clip(motion, int(bounds[i][0]), int(bounds[i][1])), path)
+    return paths
