@@ -414,3 +414,21 @@ def skin_frames(body: Body, motion: Motion, frames: np.ndarray | None = None) ->
         local_t, rotations = local_t[frames], rotations[frames]
     world_q, world_p = fk_arrays(rotations, local_t, motion.parents)
     return lbs(body.vertices, body.weight_matrix(), skinning_matrices(world_q, world_p, body.bind_transforms))
+
+
+def centre_of_mass(motion: Motion, body: Body, frames: np.ndarray) -> np.ndarray:
+    """Centre of the body's volume ``(F, 3)`` at ``frames`` (file units), uniform density.
+
+    Approximated by the volume-weighted centres of the solid capsules the body was
+    built from, each moving with its driving joint.
+    """
+    caps = bone_capsules(motion, positions=body.bind_transforms[:, :3, 3])
+    solid = caps.solid
+    length = np.linalg.norm(caps.end - caps.start, axis=1)[solid]
+    r0, r1 = caps.r0[solid], caps.r1[solid]
+    volume = np.pi / 3 * length * (r0 ** 2 + r0 * r1 + r1 ** 2) + np.pi * 2 / 3 * (r0 ** 3 + r1 ** 3)
+    centre = np.c_[0.5 * (caps.start + caps.end)[solid], np.ones(int(solid.sum()))]  # homogeneous
+    world_q, world_p = fk_arrays(motion.rotations[frames], local_translations(motion)[frames], motion.parents)
+    matrices = skinning_matrices(world_q, world_p, body.bind_transforms)[:, caps.joint[solid]]  # (F, B, 3, 4)
+    moved = np.einsum("fbij,bj->fbi", matrices, centre)
+    return np.einsum("fbi,b->fi", moved, volume) / volume.sum()
