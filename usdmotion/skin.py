@@ -35,7 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from usdmotion.errors import InputError
+from usdmotion.errors import UsdMotionError
 from usdmotion.kinematics import compose_transforms, fk_arrays, local_translations
 from usdmotion.motion import Motion
 
@@ -305,7 +305,8 @@ def build_body(motion: Motion, resolution: int = 96, thickness: float = 1.0,
     pose_q, pose_p = bind_pose(motion)
     caps = bone_capsules(motion, thickness, pose_p)
     if not caps.solid.any():
-        raise InputError(None, "the skeleton has no bone of positive length to build a body around")
+        raise UsdMotionError("the skeleton has no bone of positive length to build a body around "
+                             "(render it with --style stick)")
     vertices, faces, normals = _mesh_surface(caps, body_size(motion), resolution, blend)
     indices, weights = skin_weights(vertices, caps, motion.parents, body_size(motion))
     return Body(vertices=vertices, faces=faces, normals=normals, joint_indices=indices,

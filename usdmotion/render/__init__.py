@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from usdmotion.errors import InputError, UsdMotionError
+from usdmotion.errors import UsdMotionError
 from usdmotion.kinematics import fk_arrays, local_translations
 from usdmotion.motion import Motion
 
@@ -86,8 +86,8 @@ def output_frames(motion: Motion, options: RenderOptions) -> tuple[np.ndarray, n
     if start < 0:
         start += motion.n_frames
     if motion.n_frames == 0 or end <= start or start >= motion.n_frames:
-        raise InputError(None, f"no frames to render (the motion has {motion.n_frames} frames, "
-                               f"range {start}:{end})")
+        raise UsdMotionError(f"no frames to render (the motion has {motion.n_frames} frames, "
+                             f"range {start}:{end})")
     if not (options.speed > 0 and math.isfinite(options.speed)):
         raise UsdMotionError(f"--speed must be a positive number, got {options.speed}")
     fps = default_fps(motion.fps) if options.fps is None else float(options.fps)
@@ -124,7 +124,7 @@ def plan_render(motion: Motion, options: RenderOptions, other: Motion | None = N
     pad = 0.08 * body_size(motion) * motion.meters_per_unit
     if other is not None:
         if other.n_frames == 0:
-            raise InputError(None, "the compared motion has no frames")
+            raise UsdMotionError("no frames to render: the compared motion has no frames")
         other_frames = np.clip(np.rint(times * other.fps).astype(np.int64), 0, other.n_frames - 1)
         joints.append(to_render_space(_joint_positions(other, other_frames), other.meters_per_unit, other.up_axis))
         pad = max(pad, 0.08 * body_size(other) * other.meters_per_unit)

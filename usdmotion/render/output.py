@@ -35,6 +35,13 @@ DISPLAY_GAMMA = 2.2  # pyrender's fragment shader ends with pow(color, 1/2.2)
 _PATTERN = re.compile(r"#+|%0?(\d*)d")
 
 
+def _umask_mode(path: Path, mode: int) -> None:
+    """Give a temporary output the permissions a normally created one would have."""
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(path, mode & ~umask)
+
+
 def is_video(path: Path) -> bool:
     return Path(path).suffix.lower() in VIDEO_EXTENSIONS
 
@@ -90,6 +97,7 @@ class VideoWriter:
     def commit(self) -> None:
         self.container.mux(self.stream.encode())
         self.container.close()
+        _umask_mode(self.tmp, 0o666)
         os.replace(self.tmp, self.path)
 
     def abort(self) -> None:
@@ -136,6 +144,7 @@ class ImageSequenceWriter:
 
     def commit(self) -> None:
         if not self.target.exists():
+            _umask_mode(self.tmp, 0o777)
             os.replace(self.tmp, self.target)
             return
         for name in self.written:
