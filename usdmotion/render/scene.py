@@ -95,7 +95,7 @@ class StickFigure:
         frame = np.stack([x, y, z], axis=-1)  # (B, 3, 3): columns x, y, z
         scale = np.stack([np.full_like(length, 0.6 * self.radius), np.full_like(length, 0.6 * self.radius),
                           length], axis=-1)
-        bone_v = np.einsum("bij,vj->bvi", frame, self.prism_v[None] * scale[:, None]) + a[:, None]
+        bone_v = np.einsum("bij,bvj->bvi", frame, self.prism_v[None] * scale[:, None]) + a[:, None]
         bone_n = np.einsum("bij,vj->bvi", frame, self.prism_n)
         joint_v = joints[:, None] + self.radius * self.sphere_v[None]
         joint_n = np.broadcast_to(self.sphere_v, joint_v.shape)

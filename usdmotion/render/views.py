@@ -28,9 +28,13 @@ class Actor:
         self.scale = motion.meters_per_unit
         self.body = self.stick = None
         self.nodes = []
+        self.inset = 0.0
         if style in ("body", "both"):
             self.body = build_body(motion, resolution=resolution)
             color = COLORS["ghost"] if ghost else COLORS["body"]
+            # the ghost sits 1 % of the body size inside its own surface: where both motions
+            # agree the opaque main body hides it, so it shows only where they differ
+            self.inset = 0.01 * self.body.size * self.scale if ghost else 0.0
             if style == "both" and not ghost:
                 color = color[:3] + (0.45,)
             self.weights = self.body.weight_matrix()
@@ -56,7 +60,8 @@ class Actor:
         if self.body is not None:
             matrices = skinning_matrices(world_q, world_p, self.body.bind_transforms)
             positions, normals = lbs(self.body.vertices, self.weights, matrices, self.body.normals)
-            self.positions, self.normals = self._space(positions), normals @ self.turn.T
+            self.normals = normals @ self.turn.T
+            self.positions = self._space(positions) - self.inset * self.normals
 
     def update(self, k: int) -> None:
         if self.body is not None:
