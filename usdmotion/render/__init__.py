@@ -118,6 +118,12 @@ def plan_render(motion: Motion, options: RenderOptions, other: Motion | None = N
     from usdmotion.skin import body_size
 
     _check_options(options)
+    for name in options.traces:
+        if name.lower() not in ("com", "centre_of_mass", "center_of_mass"):
+            try:
+                motion.joint_index(name)
+            except KeyError as exc:
+                raise UsdMotionError(f"--trace: {exc.args[0]}") from None
     frames, times, fps = output_frames(motion, options)
     other_frames = None
     joints = [to_render_space(_joint_positions(motion, frames), motion.meters_per_unit, motion.up_axis)]

@@ -209,7 +209,8 @@ class WriterThread:
                 return
             except OSError as exc:
                 self.writer.abort()
-                raise OutputError(f"cannot write the output: {exc.strerror or exc}") from None
+                target = getattr(self.writer, "path", None) or getattr(self.writer, "target", "output")
+                raise OutputError(f"{target}: cannot write: {exc.strerror or exc}") from None
         self.writer.abort()
         if commit and self.error is not None:
             raise self.error
