@@ -21,7 +21,7 @@ COLORS = {
     "joint": (0.85, 0.15, 0.12, 1.0),
     "ghost_stick": (0.15, 0.35, 0.90, 1.0),
     "ground": (0.80, 0.81, 0.83, 1.0),
-    "grid": (0.52, 0.54, 0.58, 1.0),
+    "grid": (0.42, 0.44, 0.48, 1.0),
     "traces": ((0.05, 0.62, 0.25, 1.0), (0.65, 0.10, 0.70, 1.0), (0.95, 0.65, 0.05, 1.0), (0.05, 0.55, 0.75, 1.0)),
 }
 
@@ -109,8 +109,9 @@ class StickFigure:
 # ------------------------------------------------------------------ static parts
 
 
-def grid_mesh(lo: np.ndarray, hi: np.ndarray, height: float, spacing: float, line_width: float):
-    """A ground quad over ``[lo, hi]`` (x, z) with lines every ``spacing`` metres."""
+def grid_mesh(lo: np.ndarray, hi: np.ndarray, height: float, spacing: float, line_width: float,
+              solid: bool = False):
+    """Grid lines every ``spacing`` metres over ``[lo, hi]`` (x, z), on a floor quad if ``solid``."""
     pyrender = import_pyrender()
     import trimesh
 
@@ -126,8 +127,10 @@ def grid_mesh(lo: np.ndarray, hi: np.ndarray, height: float, spacing: float, lin
     rects = np.asarray(along_z + along_x, dtype=np.float64)  # (L, 4, 3)
     faces = (np.array([[0, 2, 1], [0, 3, 2]])[None] + 4 * np.arange(len(rects))[:, None, None]).reshape(-1, 3)
     lines = trimesh.Trimesh(rects.reshape(-1, 3), faces, process=False)
-    return [pyrender.Mesh.from_trimesh(ground, material=material(COLORS["ground"]), smooth=False),
-            pyrender.Mesh.from_trimesh(lines, material=material(COLORS["grid"]), smooth=False)]
+    meshes = [pyrender.Mesh.from_trimesh(lines, material=material(COLORS["grid"]), smooth=False)]
+    if solid:  # a shaded floor costs a lighting pass for half the image on a CPU rasteriser
+        meshes.insert(0, pyrender.Mesh.from_trimesh(ground, material=material(COLORS["ground"]), smooth=False))
+    return meshes
 
 
 def tube_mesh(path: np.ndarray, radius: float, color, max_points: int = 4000):
@@ -161,13 +164,13 @@ def tube_mesh(path: np.ndarray, radius: float, color, max_points: int = 4000):
 
 
 def add_lights(scene, forward: np.ndarray, intensity: float = 3.0):
-    """A key light from above the front-left (casts the shadows) and a soft one from behind."""
+    """A key light from above the subject's front left (it casts the shadows)."""
     pyrender = import_pyrender()
     from usdmotion.render.camera import UP, look_at
 
     left = np.cross(UP, forward)
-    for direction, power in ((0.55 * forward + 0.45 * left + 1.1 * UP, intensity),
-                             (-0.6 * forward - 0.3 * left + 0.5 * UP, 0.35 * intensity)):
+    # one light: every light is a full lighting pass per pixel on a CPU rasteriser
+    for direction, power in ((0.55 * forward + 0.45 * left + 1.1 * UP, intensity),):
         pose = look_at(direction, np.zeros(3), UP if abs(direction[1]) < 0.99 * np.linalg.norm(direction)
                        else forward)
         scene.add(pyrender.DirectionalLight(color=np.ones(3), intensity=power), pose=pose)

@@ -91,7 +91,7 @@ class Views:
         self.renderer = offscreen_renderer(*plan.panel, msaa=options.msaa)
 
     def _scene(self, pyrender):
-        scene = pyrender.Scene(bg_color=np.array(COLORS["background"]), ambient_light=np.full(3, 0.35))
+        scene = pyrender.Scene(bg_color=np.array(COLORS["background"]), ambient_light=np.full(3, 0.45))
         cam = self.plan.camera
         camera = pyrender.PerspectiveCamera(yfov=cam.yfov, aspectRatio=self.plan.panel[0] / self.plan.panel[1],
                                             znear=cam.znear, zfar=cam.zfar)
@@ -114,7 +114,7 @@ class Views:
             margin = max(2.0, 2 * options.grid_scale)
             lo = joints.reshape(-1, 3).min(axis=0) - margin
             hi = joints.reshape(-1, 3).max(axis=0) + margin
-            static += grid_mesh(lo, hi, plan.ground, options.grid_scale, max(0.0018 * distance, 0.004))
+            static += grid_mesh(lo, hi, plan.ground, options.grid_scale, max(0.0025 * distance, 0.004))
         for k, name in enumerate(options.traces):
             path = self._trace_path(motion, name, joints)
             color = COLORS["traces"][k % len(COLORS["traces"])]
