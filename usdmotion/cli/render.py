@@ -41,7 +41,7 @@ def render(
 ) -> None:
     """Render a motion offscreen to a video or image sequence (skinned body, stick figure)."""
     from usdmotion.cli._progress import progress
-    from usdmotion.render import RenderOptions, render_motion
+    from usdmotion.render import RenderOptions, output_frames, render_motion
 
     width, height = _size(size)
     start, end = _range(frames)
@@ -51,7 +51,8 @@ def render(
                             style=style, grid=grid, grid_scale=grid_scale, traces=tuple(trace or ()),
                             overlay=overlay, compare_mode=compare_mode, shadows=shadows, msaa=msaa, quality=quality,
                             labels=(source.name, compare.name if compare else ""))
-    with progress(f"rendering {output.name}", unit="frames") as update:
+    total = len(output_frames(motion, options)[0])
+    with progress(f"rendering {output.name}", total=total, unit="frames") as update:
         result = render_motion(motion, output, options, other, progress=lambda n: update(n))
     t = result.timings
     typer.echo(f"wrote {output}: {result.frames} frames {width}x{height} in {result.seconds:.1f} s "

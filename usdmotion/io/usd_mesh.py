@@ -24,7 +24,7 @@ from usdmotion.skin import INFLUENCES, Body
 
 def add_body_mesh(stage, skeleton, body: Body, name: str = "Body", color=(0.80, 0.62, 0.52)):
     """Author ``body`` as a skinned ``UsdGeom.Mesh`` beside ``skeleton``; returns the mesh."""
-    from pxr import Gf, Sdf, UsdGeom, UsdSkel, Vt
+    from pxr import Gf, UsdGeom, UsdSkel, Vt
 
     from usdmotion.io.usd import _usd_matrices
 
@@ -50,7 +50,6 @@ def add_body_mesh(stage, skeleton, body: Body, name: str = "Body", color=(0.80, 
     binding.CreateGeomBindTransformAttr(Gf.Matrix4d(1.0))
     skeleton.GetBindTransformsAttr().Set(_usd_matrices(body.bind_transforms))
     mesh.GetPrim().SetCustomDataByKey("usdmotion", {"body": "usdmotion.skin.build_body", "size": body.size})
-    del Sdf
     return mesh
 
 
