@@ -114,7 +114,8 @@ class Views:
             margin = max(2.0, 2 * options.grid_scale)
             lo = joints.reshape(-1, 3).min(axis=0) - margin
             hi = joints.reshape(-1, 3).max(axis=0) + margin
-            static += grid_mesh(lo, hi, plan.ground, options.grid_scale, max(0.0025 * distance, 0.004))
+            static += grid_mesh(lo, hi, plan.ground, options.grid_scale, max(0.0025 * distance, 0.004),
+                              solid=options.shadows)  # a floor to receive the shadows
         for k, name in enumerate(options.traces):
             path = self._trace_path(motion, name, joints)
             color = COLORS["traces"][k % len(COLORS["traces"])]
