@@ -23,6 +23,8 @@ def convert(
     lenient: Lenient = False,
     ignore_joint_positions: IgnoreJointPositions = False,
     validate: Annotated[bool, typer.Option(help="Run pxr.UsdValidation on a USD output.")] = True,
+    mesh: Annotated[bool, typer.Option("--mesh", help="Add a volumetric body Mesh skinned to the Skeleton "
+                                                      "(USD output only).")] = False,
 ) -> None:
     """Convert a motion between BVH and OpenUSD (UsdSkel)."""
     from usdmotion.cli._progress import progress
@@ -33,8 +35,17 @@ def convert(
         raise OutputError(f"{output}: output would overwrite the input")
     start = time.perf_counter()
     motion = read_input(source, units, up_axis, root_offset, lenient, ignore_joint_positions)
+    options = {}
+    if mesh:
+        from usdmotion.io.usd_mesh import body_decorator
+        from usdmotion.skin import build_body
+
+        if output.suffix.lower() not in (".usd", ".usda", ".usdc", ".usdz"):
+            raise OutputError(f"{output}: --mesh needs a USD output (.usd, .usda, .usdc, .usdz)")
+        with progress("building the body mesh"):
+            options["decorate"] = body_decorator(build_body(motion))
     with progress(f"writing {output.name}"):
-        write_motion(motion, output)
+        write_motion(motion, output, **options)
     problems = []
     if validate and output.suffix.lower() in (".usd", ".usda", ".usdc", ".usdz"):
         from usdmotion.io.usd import validate_stage

@@ -1,0 +1,127 @@
+"""Rendering throughput: frames/s end to end (skin → render → encode to H.264), with the
+skinning, rendering and encoding times separated, for a skinned CMU walk at 1280×720 and
+640×480, with and without shadows; EGL on Mesa llvmpipe (CPU).
+
+    PYTHONPATH=$PWD python benchmarks/render.py [--frames 120] [--long 10000]
+
+Goal (issue 4): ≥ 25 frames/s end to end at 1280×720, skinned body, no shadows, 2 cores.
+``--long N`` also renders N frames at 320×240 to check that memory stays flat (RSS
+sampled every 500 frames). Prints a table; writes ``benchmarks/results/render.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import resource
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+WALK = Path(os.environ.get("USDMOTION_SHARED_DATA", ROOT.parent / "shared" / "data")) / "cmu/cgspeed_12_01_walk.bvh"
+
+
+def rss_mib() -> float:
+    with open("/proc/self/statm") as f:
+        return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
+
+
+def gl_renderer() -> str:
+    from usdmotion.render.gl import offscreen_renderer
+
+    r = offscreen_renderer(16, 16)
+    r._platform.make_current()
+    from OpenGL import GL
+
+    name = GL.glGetString(GL.GL_RENDERER).decode()
+    r.delete()
+    return name
+
+
+def run_case(motion, width, height, shadows, frames, tmp: Path) -> dict:
+    from usdmotion.render import RenderOptions, render_motion
+
+    options = RenderOptions(width=width, height=height, start=1, end=1 + frames * 2, fps=60.0, shadows=shadows,
+                            camera="side")
+    result = render_motion(motion, tmp / f"bench_{width}x{height}_{int(shadows)}.mp4", options)
+    t = result.timings
+    n = result.frames
+    loop = result.seconds - t["build"]
+    return {"size": f"{width}x{height}", "shadows": shadows, "frames": n,
+            "fps_end_to_end": n / loop, "fps_incl_body_build": result.fps,
+            "body_build_s": t["build"], "skin_ms": 1e3 * t["skin"] / n, "render_ms": 1e3 * t["render"] / n,
+            "encode_ms": 1e3 * t["encode"] / n, "loop_s": loop}
+
+
+def run_long(motion, count: int, tmp: Path) -> dict:
+    from usdmotion.render import RenderOptions, render_motion
+
+    long = motion.with_frames(np.resize(motion.rotations[1:], (count,) + motion.rotations.shape[1:]),
+                              np.resize(motion.root_translation[1:], (count, 3)), fps=60.0)
+    samples = []
+    done = [0]
+
+    def progress(advance):
+        done[0] += advance
+        if done[0] % 500 == 0:
+            samples.append((done[0], round(rss_mib(), 1)))
+
+    started = time.perf_counter()
+    render_motion(long, tmp / "long.mp4", RenderOptions(width=320, height=240, fps=60.0, camera="follow"),
+                  progress=progress)
+    return {"frames": count, "seconds": time.perf_counter() - started, "rss_mib_every_500_frames": samples,
+            "rss_growth_mib_after_first_1000": samples[-1][1] - samples[1][1] if len(samples) > 2 else None}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--frames", type=int, default=120, help="output frames per case")
+    parser.add_argument("--long", type=int, default=0, help="also render this many frames to check memory")
+    args = parser.parse_args()
+    import tempfile
+
+    from usdmotion.io import read_motion
+
+    motion = read_motion(WALK, units="asf")
+    tmp = Path(tempfile.mkdtemp(prefix="usdmotion-bench-"))
+    renderer = gl_renderer()
+    cases = [run_case(motion, w, h, s, args.frames, tmp) for (w, h) in ((1280, 720), (640, 480)) for s in (False, True)]
+    result = {
+        "benchmark": "render", "input": WALK.name, "device": f"EGL {renderer} (CPU)",
+        "gpu": "none lent to this task: no GPU numbers", "cpu_count": os.cpu_count(),
+        "python": platform.python_version(), "cases": cases,
+        "goal": "≥ 25 frames/s end to end at 1280x720, skinned body, no shadows",
+        "goal_met": bool(cases[0]["fps_end_to_end"] >= 25.0),
+        "load_average_at_end": os.getloadavg(),
+    }
+    if args.long:
+        result["long"] = run_long(motion, args.long, tmp)
+    result["peak_rss_mib"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    print(f"device: {result['device']}; GPU: {result['gpu']}; cores: {os.cpu_count()}, "
+          f"load average {os.getloadavg()[0]:.2f}")
+    print(f"{'size':>9} {'shadows':>7} {'frames':>6} {'fps e2e':>8} {'skin ms':>8} {'render ms':>9} "
+          f"{'encode ms':>9} {'body s':>6}")
+    for c in cases:
+        print(f"{c['size']:>9} {str(c['shadows']):>7} {c['frames']:>6} {c['fps_end_to_end']:>8.1f} "
+              f"{c['skin_ms']:>8.2f} {c['render_ms']:>9.1f} {c['encode_ms']:>9.1f} {c['body_build_s']:>6.2f}")
+    print("(encode runs on a writer thread in parallel with rendering; fps e2e = frames / (skin + render + "
+          "encode-wait), body build excluded and listed separately)")
+    print(f"goal ≥ 25 fps at 1280x720 no shadows: {'met' if result['goal_met'] else 'NOT met'} "
+          f"({cases[0]['fps_end_to_end']:.1f} fps)")
+    if args.long:
+        print(f"long render: {result['long']['frames']} frames in {result['long']['seconds']:.0f} s, RSS every 500 "
+              f"frames: {[s[1] for s in result['long']['rss_mib_every_500_frames']]} MiB")
+    out = ROOT / "benchmarks" / "results" / "render.json"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(result, indent=2))
+    print(f"wrote {out}")
+
+
+if __name__ == "__main__":
+    main()

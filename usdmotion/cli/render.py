@@ -1,0 +1,78 @@
+"""``usdmotion render IN OUT``: offscreen feedback video (.mp4) or image sequence (####.png/.exr/.jpg)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from usdmotion.cli._options import InputPath, Lenient, RootOffset, RootOffsetChoice, UpAxis, Units, read_input
+from usdmotion.cli.app import app
+
+Opt = typer.Option
+
+
+@app.command()
+def render(
+    source: InputPath,
+    output: Annotated[Path, typer.Argument(help="Video (.mp4) or image sequence pattern (frames/####.png, "
+                                                ".jpg, .exr = linear floats).", show_default=False)],
+    size: Annotated[str, Opt(help="Image size WIDTHxHEIGHT.")] = "1280x720",
+    frames: Annotated[str | None, Opt(help="Source frame range START:END (end exclusive).")] = None,
+    fps: Annotated[float | None, Opt(help="Output frame rate (default: the motion's, at most 60).")] = None,
+    speed: Annotated[float, Opt(help="Playback speed (0.25 = 4x slow motion).")] = 1.0,
+    camera: Annotated[str, Opt(help="Preset (side, front, top, follow, orbit) or a USD camera: "
+                                    "cam.usda[:/Path/To/Camera].")] = "side",
+    style: Annotated[str, Opt(help="body, stick or both.")] = "body",
+    grid: Annotated[bool, Opt(help="Draw the ground grid.")] = True,
+    grid_scale: Annotated[float, Opt(help="Grid spacing in metres.")] = 1.0,
+    trace: Annotated[list[str] | None, Opt(help="Joint name or 'com' whose path to draw (repeatable).")] = None,
+    overlay: Annotated[bool, Opt(help="Frame/time text overlay.")] = True,
+    compare: Annotated[Path | None, Opt(help="A second motion to compare with.")] = None,
+    compare_mode: Annotated[str, Opt(help="ghost (overlaid, translucent) or side (side by side).")] = "ghost",
+    shadows: Annotated[bool, Opt(help="Shadows from the key light (about half the speed).")] = False,
+    msaa: Annotated[int, Opt(help="Multisample anti-aliasing samples (0 = off, fastest).")] = 0,
+    quality: Annotated[int, Opt(help="H.264 CRF (lower = better, larger).")] = 20,
+    units: Units = None,
+    up_axis: UpAxis = None,
+    root_offset: RootOffset = RootOffsetChoice.auto,
+    lenient: Lenient = False,
+) -> None:
+    """Render a motion offscreen to a video or image sequence (skinned body, stick figure)."""
+    from usdmotion.cli._progress import progress
+    from usdmotion.render import RenderOptions, output_frames, render_motion
+
+    width, height = _size(size)
+    start, end = _range(frames)
+    motion = read_input(source, units, up_axis, root_offset, lenient)
+    other = read_input(compare, units, up_axis, root_offset, lenient) if compare else None
+    options = RenderOptions(width=width, height=height, start=start, end=end, fps=fps, speed=speed, camera=camera,
+                            style=style, grid=grid, grid_scale=grid_scale, traces=tuple(trace or ()),
+                            overlay=overlay, compare_mode=compare_mode, shadows=shadows, msaa=msaa, quality=quality,
+                            labels=(source.name, compare.name if compare else ""))
+    total = len(output_frames(motion, options)[0])
+    with progress(f"rendering {output.name}", total=total, unit="frames") as update:
+        result = render_motion(motion, output, options, other, progress=lambda n: update(n))
+    t = result.timings
+    typer.echo(f"wrote {output}: {result.frames} frames {width}x{height} in {result.seconds:.1f} s "
+               f"({result.fps:.1f} frames/s; body {t.get('build', 0):.1f} s, skinning {t.get('skin', 0):.1f} s, "
+               f"rendering {t.get('render', 0):.1f} s, encoding {t.get('encode', 0):.1f} s in parallel)")
+
+
+def _size(text: str) -> tuple[int, int]:
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise ValueError(f"--size: {text!r} is not WIDTHxHEIGHT, e.g. 1280x720") from None
+    return w, h
+
+
+def _range(text: str | None) -> tuple[int | None, int | None]:
+    if text is None:
+        return None, None
+    try:
+        a, b = text.split(":")
+        return (int(a) if a.strip() else None), (int(b) if b.strip() else None)
+    except ValueError:
+        raise ValueError(f"--frames: {text!r} is not START:END, e.g. 100:400") from None

@@ -1,0 +1,177 @@
+"""Offscreen rendering of motions to feedback videos and image sequences (pyrender, EGL).
+
+``render_motion(motion, output, options, other=None)`` renders a skinned body, a stick
+figure or both, with a ground grid, trajectory traces, a frame/time overlay, and an
+optional second motion beside it or overlaid as a translucent ghost. Frames stream
+through a bounded queue into a writer thread (encoding overlaps rendering); skinning
+runs in chunks of :data:`CHUNK` frames, so memory stays flat however long the motion.
+See ``docs/render.md``.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from usdmotion.errors import UsdMotionError
+from usdmotion.kinematics import fk_arrays, local_translations
+from usdmotion.motion import Motion
+
+CHUNK = 32
+STYLES = ("body", "stick", "both")
+COMPARE_MODES = ("ghost", "side")
+
+
+@dataclass(frozen=True)
+class RenderOptions:
+    """What to render. Frame numbers are the source motion's (``end`` exclusive)."""
+
+    width: int = 1280
+    height: int = 720
+    start: int | None = None
+    end: int | None = None
+    fps: float | None = None
+    speed: float = 1.0
+    camera: str = "side"
+    style: str = "body"
+    grid: bool = True
+    grid_scale: float = 1.0
+    traces: tuple[str, ...] = ()
+    overlay: bool = True
+    compare_mode: str = "ghost"
+    shadows: bool = False
+    msaa: int = 0
+    quality: int = 20
+    body_resolution: int = 96
+    labels: tuple[str, str] = ("", "")
+
+
+@dataclass(frozen=True)
+class RenderPlan:
+    """Which source frames each output frame shows, at what time, seen from where."""
+
+    frames: np.ndarray              # (N,) source frame of the main motion
+    other_frames: np.ndarray | None  # (N,) source frame of the compared motion
+    times: np.ndarray               # (N,) seconds since the main motion's frame 0
+    fps: float
+    camera: object                  # usdmotion.render.camera.CameraTrack
+    panel: tuple[int, int]          # (width, height) of one view
+    ground: float                   # ground height, metres (render space)
+
+
+@dataclass
+class RenderResult:
+    frames: int
+    seconds: float
+    timings: dict = field(default_factory=dict)
+
+    @property
+    def fps(self) -> float:
+        return self.frames / self.seconds if self.seconds > 0 else float("inf")
+
+
+def default_fps(motion_fps: float) -> float:
+    """The motion's rate, or the largest integer fraction of it not above 60 fps."""
+    return motion_fps / math.ceil(motion_fps / 60.0 - 1e-9)
+
+
+def output_frames(motion: Motion, options: RenderOptions) -> tuple[np.ndarray, np.ndarray, float]:
+    """``(source_frames (N,), times (N,) s, fps)`` of the output, per options."""
+    start = 0 if options.start is None else int(options.start)
+    end = motion.n_frames if options.end is None else min(int(options.end), motion.n_frames)
+    if start < 0:
+        start += motion.n_frames
+    if motion.n_frames == 0 or end <= start or start >= motion.n_frames:
+        raise UsdMotionError(f"no frames to render (the motion has {motion.n_frames} frames, "
+                             f"range {start}:{end})")
+    if not (options.speed > 0 and math.isfinite(options.speed)):
+        raise UsdMotionError(f"--speed must be a positive number, got {options.speed}")
+    fps = default_fps(motion.fps) if options.fps is None else float(options.fps)
+    if not (fps > 0 and math.isfinite(fps)):
+        raise UsdMotionError(f"--fps must be a positive number, got {options.fps}")
+    span = (end - 1 - start) / motion.fps
+    count = int(math.floor(span * fps / options.speed + 1e-6)) + 1
+    times = start / motion.fps + np.arange(count) * options.speed / fps
+    frames = np.clip(np.rint(times * motion.fps).astype(np.int64), start, end - 1)
+    return frames, times, fps
+
+
+def _check_options(options: RenderOptions) -> None:
+    if options.style not in STYLES:
+        raise UsdMotionError(f"unknown style {options.style!r} (use {', '.join(STYLES)})")
+    if options.compare_mode not in COMPARE_MODES:
+        raise UsdMotionError(f"unknown compare mode {options.compare_mode!r} (use {', '.join(COMPARE_MODES)})")
+    if not (16 <= options.width <= 8192 and 16 <= options.height <= 8192):
+        raise UsdMotionError(f"image size {options.width}x{options.height} is outside 16..8192")
+    if not options.grid_scale > 0:
+        raise UsdMotionError(f"--grid-scale must be positive, got {options.grid_scale}")
+
+
+def plan_render(motion: Motion, options: RenderOptions, other: Motion | None = None) -> RenderPlan:
+    """Frames, times and camera of a render (no GL needed; tests project joints with it)."""
+    from usdmotion.render.camera import is_usd_camera, preset_track, usd_camera_track
+    from usdmotion.render.scene import to_render_space
+    from usdmotion.skin import body_size
+
+    _check_options(options)
+    for name in options.traces:
+        if name.lower() not in ("com", "centre_of_mass", "center_of_mass"):
+            try:
+                motion.joint_index(name)
+            except KeyError as exc:
+                raise UsdMotionError(f"--trace: {exc.args[0]}") from None
+    frames, times, fps = output_frames(motion, options)
+    other_frames = None
+    joints = [to_render_space(_joint_positions(motion, frames), motion.meters_per_unit, motion.up_axis)]
+    pad = 0.08 * body_size(motion) * motion.meters_per_unit
+    if other is not None:
+        if other.n_frames == 0:
+            raise UsdMotionError("no frames to render: the compared motion has no frames")
+        other_frames = np.clip(np.rint(times * other.fps).astype(np.int64), 0, other.n_frames - 1)
+        joints.append(to_render_space(_joint_positions(other, other_frames), other.meters_per_unit, other.up_axis))
+        pad = max(pad, 0.08 * body_size(other) * other.meters_per_unit)
+    side = other is not None and options.compare_mode == "side"
+    panel = (options.width // 2 if side else options.width, options.height)
+    if is_usd_camera(options.camera):
+        camera = usd_camera_track(options.camera, times)
+    else:
+        camera = preset_track(options.camera, np.concatenate(joints, axis=1), times, panel[0] / panel[1], pad)
+    ground = min(0.0, float(min(j[..., 1].min() for j in joints)))
+    return RenderPlan(frames, other_frames, times, fps, camera, panel, ground)
+
+
+def _joint_positions(motion: Motion, frames: np.ndarray) -> np.ndarray:
+    return fk_arrays(motion.rotations[frames], local_translations(motion)[frames], motion.parents)[1]
+
+
+def render_motion(motion: Motion, output: str | Path, options: RenderOptions = RenderOptions(),
+                  other: Motion | None = None, progress=None) -> RenderResult:
+    """Render ``motion`` (and ``other``, compared) to ``output`` (``.mp4`` or ``dir/####.png``).
+
+    ``progress``: optional ``update(advance=…)`` callable, called once per frame.
+    Nothing is left at ``output`` if anything fails.
+    """
+    from usdmotion.render.output import WriterThread, check_output, open_writer
+
+    output = Path(output)
+    check_output(output, options.width, options.height)
+    plan = plan_render(motion, options, other)
+    from usdmotion.render.views import Views  # GL from here on
+
+    started = time.perf_counter()
+    views = Views(motion, other, plan, options)
+    timings = {"build": time.perf_counter() - started}
+    writer = WriterThread(open_writer(output, options.width, options.height, plan.fps, options.quality))
+    committed = False
+    try:
+        views.run(lambda image, index: writer.put(image, index), progress, timings)
+        committed = True
+    finally:
+        views.close()
+        writer.close(commit=committed)
+    timings["encode"] = writer.busy
+    return RenderResult(len(plan.frames), time.perf_counter() - started, timings)
