@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The main job end to end on the bundled CMU walk (no ../shared needed):
-# set up .venv, inspect the BVH, convert it to DCC-ready UsdSkel (.usda/.usdc/.usdz),
-# convert back to BVH, and check the round trip. Outputs land in out/demo/.
+# set up .venv, inspect the BVH, convert it to DCC-ready UsdSkel (.usda/.usdc/.usdz, and a
+# skinned volumetric body), convert back to BVH and check the round trip, then render a
+# feedback video. Outputs land in out/demo/.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/setup.sh
@@ -20,5 +21,10 @@ $U convert "$OUT/walk.usdz" "$OUT/walk_roundtrip.bvh"
 echo "== 4. same joint positions after the round trip (frame 100, left foot)"
 $U positions "$IN" --frames 100 --joints LeftFoot,RightHand --units asf
 $U positions "$OUT/walk_roundtrip.bvh" --frames 100 --joints LeftFoot,RightHand
+echo "== 5. a skinned volumetric body bound to the skeleton (opens skinned in Blender, Maya, Houdini, Omniverse)"
+$U convert "$IN" "$OUT/walk_body.usdz" --units asf --mesh
+echo "== 6. feedback video: side view, body, wrist and centre-of-mass paths (frame 0 is cgspeed's T-pose: skipped)"
+$U render "$IN" "$OUT/walk_side.mp4" --units asf --frames 1:524 --fps 30 --trace LeftHand --trace com
+$U render "$IN" "$OUT/stills/####.png" --units asf --frames 1:524:60 --camera front --style both --size 640x480
 echo "demo outputs in $OUT/:"
 ls -la "$OUT"

@@ -70,7 +70,7 @@ class Case:
     units: str | None = None
     up_axis: str | None = None
     frames: int | None = None  # keep only the first N frames
-    mesh: str | None = None    # None, "identity" or "offset" geomBindTransform
+    mesh: str | None = None    # None, "identity" or "offset" geomBindTransform (test boxes), "body" (usdmotion.skin)
     via_cli: bool = False
 
 
@@ -87,6 +87,7 @@ CASES = (
     Case("tricky_names", "synthetic:names", ".usda"),
     Case("skinned_tricky_names", "synthetic:names", ".usda", mesh="identity"),
     Case("skinned_cmu_walk_geom_bind", "cmu/cgspeed_12_01_walk.bvh", ".usdz", frames=48, mesh="offset"),
+    Case("body_mesh_cmu_walk", "cmu/cgspeed_12_01_walk.bvh", ".usdc", units="asf", frames=60, mesh="body"),
 )
 MESH_CASES = tuple(c for c in CASES if c.mesh)
 
@@ -310,7 +311,18 @@ def write_case(case: Case, tmp: Path) -> Written:
     src, motion = source_motion(case, tmp)
     out = tmp / f"{case.id}{case.ext}"
     boxes = None
-    if case.mesh:
+    if case.mesh == "body":  # the product's own volumetric body (usdmotion convert --mesh)
+        from usdmotion.io.usd_mesh import body_decorator
+        from usdmotion.skin import build_body
+
+        body = build_body(motion)
+        assert np.allclose(body.bind_transforms, bind_transforms(motion))  # CMU: bound in the rest pose
+        triangles = np.asarray(body.faces)
+        boxes = SkinnedBoxes(points=np.asarray(body.vertices), counts=np.full(len(triangles), 3),
+                             indices=triangles.ravel(), joint_indices=np.asarray(body.joint_indices),
+                             joint_weights=np.asarray(body.joint_weights), geom_bind=np.eye(4))
+        write_usd(motion, out, decorate=body_decorator(body))
+    elif case.mesh:
         boxes = skinned_boxes(motion, np.eye(4) if case.mesh == "identity" else offset_geom_bind())
         write_usd(motion, out, decorate=add_mesh(boxes))
     elif case.via_cli:
