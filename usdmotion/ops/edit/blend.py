@@ -248,8 +248,9 @@ def _blend_frames(m0, m1, index, selected, tau0, tau1, b, method, interp) -> Mot
     whole_path = bool(selected[0])
     undo = None
     if whole_path:
-        c0, undo = T.to_root_carried(m0)
-        c1, _ = T.to_root_carried(m1)
+        carrier = max(T.carrier_joint(m0), T.carrier_joint(m1))  # one root frame for both
+        c0, undo = T.to_root_carried(m0, carrier)
+        c1, _ = T.to_root_carried(m1, index[carrier] if carrier else 0)
         body = T.heading_vector(c0)
         l0, yaw0, g0 = T.split_path(c0, body=body)
         l1, yaw1, g1 = T.split_path(c1, body=body)  # one body-fixed vector: same root frame

@@ -43,27 +43,37 @@ def carrier_joint(motion: Motion) -> int:
     return c if moves else 0
 
 
-def to_root_carried(motion: Motion) -> tuple[Motion, tuple | None]:
-    """Move a carrier child's motion onto joint 0; returns the motion and what undoes it."""
-    c = carrier_joint(motion)
+def to_root_carried(motion: Motion, carrier: int | None = None) -> tuple[Motion, tuple | None]:
+    """Move a carrier child's motion onto joint 0; returns the motion and what undoes it.
+
+    ``carrier``: the joint to move (default :func:`carrier_joint`); blending passes the
+    same one for both motions so that their root frames mean the same.
+    """
+    c = carrier_joint(motion) if carrier is None else int(carrier)
     if c == 0:
         return motion, None
-    q0 = Q.to_c(motion.rotations[0, 0])[:, None]
-    p0 = motion.root_translation[0]
+    if motion.parents[c] != 0 or len(motion.children(0)) != 1 or motion.joint_translations is None:
+        raise EditError(f"{motion.joint_names[c]} cannot carry the motion: it must be the root's only child "
+                        "and have translation channels")
+    q0 = Q.to_c(motion.rotations[:, 0])
     qc = Q.to_c(motion.rotations[:, c])
     tc = motion.joint_translations[:, c]
     rotations = np.array(motion.rotations)
     jt = np.array(motion.joint_translations)
     rotations[:, 0] = Q.from_c(Q.mul(q0, qc))
-    root = p0[None] + Q.rotate(q0, tc.T).T
+    root = motion.root_translation + Q.rotate(q0, tc.T).T
     rotations[:, c] = (1.0, 0.0, 0.0, 0.0)
     jt[:, c] = 0.0
     carried = motion.with_frames(rotations, root, jt)
-    return carried, (c, motion.rotations[0, 0].copy(), p0.copy())
+    return carried, (c, motion.rotations[0, 0].copy(), motion.root_translation[0].copy())
 
 
 def from_root_carried(motion: Motion, undo: tuple | None, template: Motion) -> Motion:
-    """Inverse of :func:`to_root_carried` (``template``: the motion it was made from)."""
+    """Inverse of :func:`to_root_carried` (``template``: the motion it was made from).
+
+    Joint 0 gets the first frame's transform of the original for good (a still root, as
+    the rig had), its child the rest of the motion.
+    """
     if undo is None:
         return rebuild(template, motion.rotations, motion.root_translation, motion.joint_translations,
                        fps=motion.fps)
@@ -112,17 +122,28 @@ def heading_vector(motion: Motion) -> np.ndarray:
     return best
 
 
-def heading(motion: Motion, body: np.ndarray | None = None) -> np.ndarray:
-    """Unwrapped heading ``ψ(t)`` (radians, ``(F,)``) of joint 0 about the up axis.
+#: Heading is smoothed with a Gaussian of this many seconds: the pelvis turns back and
+#: forth with every stride (±10-15° when running), which is pose, not path.
+HEADING_SMOOTHING_S = 0.5
+
+
+def heading(motion: Motion, body: np.ndarray | None = None, smooth_s: float = HEADING_SMOOTHING_S) -> np.ndarray:
+    """Heading ``ψ(t)`` (radians, ``(F,)``, unwrapped) of joint 0 about the up axis.
 
     Measured from the body-fixed vector ``body`` (default :func:`heading_vector`; its
-    choice only adds a constant); motions that are blended share one.
+    choice only adds a constant; motions that are blended share one), then smoothed over
+    ``smooth_s`` seconds (Gaussian σ) so the stride's pelvis swing stays in the pose.
     """
     _, a, b = ground_axes(motion)
     body = heading_vector(motion) if body is None else np.asarray(body, dtype=np.float64)
     q = Q.to_c(motion.rotations[:, 0])
     v = Q.rotate(q, np.broadcast_to(body[:, None], (3, q.shape[1])))
-    return np.unwrap(np.arctan2(v[b], v[a]))
+    yaw = np.unwrap(np.arctan2(v[b], v[a]))
+    if smooth_s > 0 and len(yaw) > 1:
+        from scipy.ndimage import gaussian_filter1d
+
+        yaw = gaussian_filter1d(yaw, smooth_s * motion.fps, mode="nearest")
+    return yaw
 
 
 def ground_position(motion: Motion) -> np.ndarray:
