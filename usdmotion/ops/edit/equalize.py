@@ -9,8 +9,11 @@ and ``G_0 = G_K + Σ_k L_k``. The equalised signal is ``G_K + Σ_k g_k L_k``.
 What the original got wrong, and what is done here instead:
 
 * Borders: their filter read past the ends of the signal into zeros, pulling both ends
-  towards 0. Here the signal is mirrored about its first and last samples
-  (``x[-i] = x[i]``), so a constant stays constant and the ends keep their values.
+  towards 0. Here the signal is extended by point reflection about its first and last
+  samples (``x[−i] = 2x[0] − x[i]``): constants and straight-line trends (a root walking
+  at constant speed) pass unchanged, and the first and last frames keep their values.
+  (Mirroring, ``x[−i] = x[i]``, would bend a trend into a V and pull a walking root's
+  end back by ~0.4 units on a CMU walk.)
 * Rotations: filtering Euler angles jumps where an angle wraps at ±180°. Here each
   joint's quaternions are made sign-continuous, a smooth reference rotation ``r(t)`` is
   taken (cubic spline through block means, below every edited band), and the pyramid
@@ -38,9 +41,9 @@ PRESETS: dict[str, tuple[tuple[float, float, float], ...]] = {
     "denoise": ((8.0, math.inf, 0.5), (16.0, math.inf, 0.0)),
     # raise the middle bands: a smoother but more pronounced movement (paper: "exaggerated walk")
     "exaggerate": ((0.7, 6.0, 1.6),),
-    # low bands up, middle bands down: a damped, restricted movement (paper: "raising the
-    # low bands"; lowering the middle ones too keeps the overall amplitude)
-    "damp": ((0.3, 1.4, 1.25), (1.4, 6.0, 0.5)),
+    # the middle bands down: a damped, restricted movement (the paper got it by raising the
+    # low bands, i.e. the same balance between low and middle bands)
+    "damp": ((0.7, 6.0, 0.6),),
     # raise the high bands: nervous twitching, hand-held-camera jitter
     "jitter": ((4.0, 8.0, 2.0), (8.0, math.inf, 4.0)),
 }
@@ -79,7 +82,7 @@ def atrous_level(x: np.ndarray, level: int, axis: int = 0) -> np.ndarray:
     step = 1 << level
     pad = [(0, 0)] * x.ndim
     pad[axis] = (2 * step, 2 * step)
-    p = np.pad(x, pad, mode="reflect")  # x[-i] = x[i], x[n-1+i] = x[n-1-i]
+    p = np.pad(x, pad, mode="reflect", reflect_type="odd")  # x[-i] = 2x[0] - x[i] (point reflection)
     a, b, c = KERNEL[2], KERNEL[1], KERNEL[0]
     out = p[_index(axis, slice(0, n))] + p[_index(axis, slice(4 * step, 4 * step + n))]
     out *= c
@@ -163,7 +166,7 @@ def equalize_rotations(rotations: np.ndarray, gains) -> np.ndarray:
     """Equalise local rotations ``(F, S, 4)`` wrap-safely (see the module docstring)."""
     needed = max((k + 1 for k, g in enumerate(gains) if float(g) != 1.0), default=0)
     _check_bands(rotations.shape[0], len(gains))
-    if needed == 0 or rotations.shape[1] == 0:
+    if rotations.shape[1] == 0:
         return np.array(rotations)
     q = Q.align_signs(Q.to_c(rotations), axis=1)
     r = _reference(q, 2 ** (needed + 1))
