@@ -27,7 +27,7 @@ def walker(n_frames: int = 240, fps: float = 60.0, period: int = 60, step: float
     phase = 2 * np.pi * t / period
     euler = np.zeros((n_frames, len(NAMES), 3))  # (Z, X, Y) angles, order ZXY
     yaw = heading_deg + turn_deg_per_frame * t
-    euler[:, 0, 2] = yaw + 5 * np.sin(phase)            # pelvis yaw swing
+    euler[:, 0, 2] = 5 * np.sin(phase)                  # pelvis yaw swing (the heading is added below)
     euler[:, 0, 0] = 3 * np.sin(2 * phase)              # pelvis roll
     euler[:, 1, 1] = 4 * np.sin(phase + 0.3)            # spine
     euler[:, 3, 1] = 30 * np.sin(phase)                 # left thigh
@@ -37,6 +37,9 @@ def walker(n_frames: int = 240, fps: float = 60.0, period: int = 60, step: float
     if noise_deg:
         euler[:, :, 1:] += np.random.default_rng(seed).normal(0, noise_deg, euler[:, :, 1:].shape)
     rotations = euler_wxyz(euler)
+    # the turn is about the world's up axis, outside the pelvis roll: turning walks stay periodic up to a turn
+    turn = Rotation.from_euler("Y", yaw[:, None], degrees=True)
+    rotations[:, 0] = (turn * Rotation.from_quat(rotations[:, 0], scalar_first=True)).as_quat(scalar_first=True)
     heading = np.radians(yaw)
     direction = np.stack([np.sin(heading), np.zeros_like(heading), np.cos(heading)], axis=-1)
     root = np.cumsum(np.concatenate([np.zeros((1, 3)), step * direction[:-1]]), axis=0)

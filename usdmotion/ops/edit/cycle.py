@@ -57,12 +57,14 @@ def cycle(motion: Motion, start: int | None = None, stop: int | str | None = Non
     if n < 1 or 2 * n + 1 > length:
         raise EditError(f"cycle transition must be 1..{(length - 1) // 2} frames for a {length}-frame range, got {n}")
     period = length - n
-    segment = trim(motion, lo, hi)
+    # one frame past the range, where there is one, gives the path step out of its last frame
+    segment = trim(motion, lo, min(hi + 1, motion.n_frames))
     carried, undo = T.to_root_carried(segment)
     if offset == "none":
         local = carried
     else:
-        local, yaw, ground = T.split_path(carried, translation_only=offset == "translation")
+        # the raw heading (no smoothing): a periodic motion gives exactly periodic path steps
+        local, yaw, ground = T.split_path(carried, translation_only=offset == "translation", smooth_s=0.0)
     w = smoothstep((np.arange(n) + 1.0) / (n + 1.0))
     rotations, root, jt = _loop_frames(local, period, n, w, method)
     phase = (np.arange(loops * period) + n) % period
@@ -136,7 +138,7 @@ def _loop_steps(yaw: np.ndarray, ground: np.ndarray, period: int, n: int, w: np.
     d_ground_loop = np.array(d_ground[:period])
     w_next = np.append(w[1:], 1.0)
     wm = 0.5 * (w + w_next)  # weight of the step between two cross-faded frames
-    tail = np.minimum(np.arange(n) + period, last)  # the range's last step stands in for the one past it
+    tail = np.minimum(np.arange(n) + period, last)  # at the motion's very end the last step stands in
     d_yaw_loop[:n] = (1.0 - wm) * d_yaw[tail] + wm * d_yaw[:n]
     d_ground_loop[:n] = (1.0 - wm)[:, None] * d_ground[tail] + wm[:, None] * d_ground[:n]
     return d_yaw_loop, d_ground_loop

@@ -158,14 +158,14 @@ def rotate2(v: np.ndarray, angle: np.ndarray) -> np.ndarray:
     return np.stack([c * v[..., 0] - s * v[..., 1], s * v[..., 0] + c * v[..., 1]], axis=-1)
 
 
-def split_path(motion: Motion, translation_only: bool = False,
-               body: np.ndarray | None = None) -> tuple[Motion, np.ndarray, np.ndarray]:
+def split_path(motion: Motion, translation_only: bool = False, body: np.ndarray | None = None,
+               smooth_s: float = HEADING_SMOOTHING_S) -> tuple[Motion, np.ndarray, np.ndarray]:
     """Remove the ground transform from joint 0: ``(local_motion, heading (F,), ground (F, 2))``.
 
     The local motion's root stands over the origin facing ``ψ = 0`` (or keeps its heading
     with ``translation_only``, where the returned heading is all zeros).
     """
-    yaw = np.zeros(motion.n_frames) if translation_only else heading(motion, body)
+    yaw = np.zeros(motion.n_frames) if translation_only else heading(motion, body, smooth_s)
     ground = ground_position(motion)
     local = apply_ground_transform(motion, -yaw, None, -ground, before=True)
     return local, yaw, ground
