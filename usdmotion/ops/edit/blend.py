@@ -165,7 +165,7 @@ def blend(m0: Motion, m1: Motion, transition: float | None = None, at: float | N
         offset = A.peak_offset(s0, s1, at, transition)
     elif align == "dtw":
         tau1_transition = _dtw_warp(m0, m1, index, at, transition, align_joint, align_channel)
-    total = max(n0, n1 + (0 if offset is None else int(math.ceil(offset)))) + transition + 1
+    total = n0 + n1 + transition + 1 + max(0, 0 if offset is None else int(math.ceil(offset)))  # then cut
     b_full = blend_curve(total, at, transition, curve, keys)
     if offset is None:
         offset = float(np.argmax(b_full > 0)) if np.any(b_full > 0) else 0.0
