@@ -245,42 +245,63 @@ def _pose_features(m0, m1, index, at, transition):
 
 
 def _blend_frames(m0, m1, index, selected, tau0, tau1, b, method, interp) -> Motion:
+    """Sample both motions where they are needed, blend, and put the result on the blended path."""
     whole_path = bool(selected[0])
     undo = None
+    c0, c1 = m0, m1
     if whole_path:
         carrier = max(T.carrier_joint(m0), T.carrier_joint(m1))  # one root frame for both
         c0, undo = T.to_root_carried(m0, carrier)
         c1, _ = T.to_root_carried(m1, index[carrier] if carrier else 0)
-        body = T.heading_vector(c0)
-        l0, yaw0, g0 = T.split_path(c0, body=body)
-        l1, yaw1, g1 = T.split_path(c1, body=body)  # one body-fixed vector: same root frame
-    else:
-        l0, l1 = m0, m1
-    r0, root0, jt0 = sample_motion(l0, tau0, interp)
-    r1, root1, jt1 = sample_motion(l1, np.clip(tau1, 0, m1.n_frames - 1), interp)
-    rot_joints = np.flatnonzero(selected & ~m0.end_sites & (index >= 0))
-    q0 = Q.to_c(r0[:, rot_joints])
-    q1 = Q.to_c(r1[:, index[rot_joints]])
-    mix = Q.slerp if method == "slerp" else Q.nlerp
-    rotations = r0
-    rotations[:, rot_joints] = Q.from_c(mix(q0, q1, np.broadcast_to(b[:, None], q0.shape[1:])))
-    root = root0
+        body = T.heading_vector(c0)  # one body-fixed vector: the same root frame for both
+        path0 = (T.heading(c0, body), T.ground_position(c0))
+        path1 = (T.heading(c1, body), T.ground_position(c1))
+    tau1 = np.clip(tau1, 0, m1.n_frames - 1)
+    n = len(b)
+    i0 = np.flatnonzero((b < 1.0) | ~selected.all())  # frames that need the first motion
+    i1 = np.flatnonzero(b > 0.0)
+    r0, root0, jt0 = sample_motion(c0, tau0[i0], interp)
+    r1, root1, jt1 = sample_motion(c1, tau1[i1], interp)
+    if whole_path:  # root relative to each motion's own path
+        r0[:, 0], root0 = _to_local(m0.up_axis, r0[:, 0], root0, path0, tau0[i0])
+        r1[:, 0], root1 = _to_local(m0.up_axis, r1[:, 0], root1, path1, tau1[i1])
+    rotations = np.empty((n, m0.n_joints, 4))
+    rotations[:] = (1.0, 0.0, 0.0, 0.0)
+    rotations[i0] = r0
+    root = np.zeros((n, 3))
+    root[i0] = root0
+    jt = None
+    if c0.joint_translations is not None:
+        jt = np.broadcast_to(c0.joint_translations[:1], (n,) + c0.joint_translations.shape[1:]).copy()
+        jt[i0] = jt0
+    joints = np.flatnonzero(selected & ~m0.end_sites & (index >= 0))
+    w = b[i1]
+    full, part = w >= 1.0, w < 1.0  # only the transition needs interpolating
+    rotations[np.ix_(i1[full], joints)] = r1[np.ix_(np.flatnonzero(full), index[joints])]
+    mixed = Q.slerp if method == "slerp" else Q.nlerp
+    q0 = Q.to_c(rotations[np.ix_(i1[part], joints)])
+    q1 = Q.to_c(r1[np.ix_(np.flatnonzero(part), index[joints])])
+    rotations[np.ix_(i1[part], joints)] = Q.from_c(mixed(q0, q1, np.broadcast_to(w[part][:, None], q0.shape[1:])))
     if whole_path:
-        root = (1.0 - b)[:, None] * root0 + b[:, None] * root1
-    jt = jt0
-    if jt0 is not None and jt1 is not None:
-        moving = np.flatnonzero(selected & (index >= 0) & (animated_translation_joints(l0)
-                                                           | animated_translation_joints(l1)[np.maximum(index, 0)]))
+        root[i1] = (1.0 - w)[:, None] * root[i1] + w[:, None] * root1
+    if jt is not None and jt1 is not None:
+        moving = np.flatnonzero(selected & (index >= 0) & (animated_translation_joints(c0)
+                                                           | animated_translation_joints(c1)[np.maximum(index, 0)]))
         moving = moving[moving > 0]
-        jt[:, moving] = (1.0 - b)[:, None, None] * jt0[:, moving] + b[:, None, None] * jt1[:, index[moving]]
-    local = l0.with_frames(rotations, root, jt)
+        rows = np.ix_(i1, moving)
+        jt[rows] = (1.0 - w)[:, None, None] * jt[rows] + w[:, None, None] * jt1[:, index[moving]]
     if not whole_path:
         return rebuild(m0, rotations, root, jt)
-    path_yaw, path_ground = _blend_path(yaw0, g0, yaw1, g1, tau0, np.clip(tau1, 0, m1.n_frames - 1), b)
-    root_rot, root_pos = T.join_path(local, path_yaw, path_ground)
-    rotations[:, 0] = root_rot
-    carried = local.with_frames(rotations, root_pos, jt)
-    return T.from_root_carried(carried, undo, m0)
+    path_yaw, path_ground = _blend_path(*path0, *path1, tau0, tau1, b)
+    rotations[:, 0], root = T.transform_root(m0.up_axis, rotations[:, 0], root, path_yaw, None, path_ground)
+    return T.from_root_carried(c0.with_frames(rotations, root, jt), undo, m0)
+
+
+def _to_local(up_axis, rot, pos, path, tau):
+    """Root rotation/position relative to the path (heading, ground) sampled at ``tau``."""
+    yaw = sample_values(path[0], tau, "linear")
+    ground = sample_values(path[1], tau, "linear")
+    return T.transform_root(up_axis, rot, pos, -yaw, None, -ground, before=True)
 
 
 def _blend_path(yaw0, g0, yaw1, g1, tau0, tau1, b):

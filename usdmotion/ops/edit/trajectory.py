@@ -179,32 +179,42 @@ def join_path(local: Motion, yaw: np.ndarray, ground: np.ndarray) -> tuple[np.nd
 
 def apply_ground_transform(motion: Motion, angle: np.ndarray, pivot, shift: np.ndarray,
                            before: bool = False) -> Motion:
-    """Move the whole motion by per-frame ground transforms on joint 0.
+    """Move the whole motion by per-frame ground transforms on joint 0 (see :func:`transform_root`)."""
+    rot, pos = transform_root(motion.up_axis, motion.rotations[:, 0], motion.root_translation, angle, pivot,
+                              shift, before)
+    rotations = np.array(motion.rotations)
+    rotations[:, 0] = rot
+    return motion.with_frames(rotations, pos, translations_or_none(motion))
+
+
+def transform_root(up_axis: str, rot: np.ndarray, pos: np.ndarray, angle, pivot=None, shift=0.0,
+                   before: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Root rotations ``(F, 4)`` and positions ``(F, 3)`` moved by per-frame ground transforms.
 
     ``before=False``: ``x' = R(angle)·(x − pivot) + pivot + shift``;
     ``before=True``: ``x' = R(angle)·(x + shift)`` (used to remove a path). ``angle``
-    ``(F,)`` or scalar radians, ``shift (F, 2)`` or ``(2,)`` ground coordinates, ``pivot``
-    ``(2,)`` or ``None``.
+    ``(F,)`` or scalar radians about the up axis, ``shift (F, 2)`` or ``(2,)`` ground
+    coordinates, ``pivot`` ``(2,)`` or ``None``.
     """
-    _, a, b = ground_axes(motion)
-    n = motion.n_frames
+    up, a, b = (1, 2, 0) if up_axis == "Y" else (2, 0, 1)
+    n = len(pos)
     angle = np.broadcast_to(np.asarray(angle, dtype=np.float64), (n,))
     shift3 = np.zeros((n, 3))
     shift3[:, [a, b]] = np.broadcast_to(shift, (n, 2))
-    p = np.array(motion.root_translation)
+    p = np.array(pos, dtype=np.float64)
     if before:
         p += shift3
     elif pivot is not None:
         p[:, [a, b]] -= np.asarray(pivot, dtype=np.float64)
-    turn = up_rotation(motion, angle)
+    turn = np.zeros((4, n))
+    turn[0] = np.cos(0.5 * angle)
+    turn[1 + up] = np.sin(0.5 * angle)
     p = Q.rotate(turn, p.T).T
     if not before:
         p += shift3
         if pivot is not None:
             p[:, [a, b]] += np.asarray(pivot, dtype=np.float64)
-    rotations = np.array(motion.rotations)
-    rotations[:, 0] = Q.from_c(Q.mul(turn, Q.to_c(motion.rotations[:, 0])))
-    return motion.with_frames(rotations, p, translations_or_none(motion))
+    return Q.from_c(Q.mul(turn, Q.to_c(rot))), p
 
 
 def steps(yaw: np.ndarray, ground: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
