@@ -10,6 +10,10 @@ used inside the hot paths of :mod:`usdmotion.ops.edit`. Convert with :func:`to_c
 
 from __future__ import annotations
 
+import os
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 
 from usdmotion.constants import tol
@@ -18,6 +22,16 @@ from usdmotion.constants import tol
 def to_c(q: np.ndarray) -> np.ndarray:
     """``(..., 4)`` wxyz → contiguous component-first ``(4, ...)``."""
     return np.ascontiguousarray(np.moveaxis(np.asarray(q, dtype=np.float64), -1, 0))
+
+
+def gather_c(q: np.ndarray, joints: np.ndarray) -> np.ndarray:
+    """Component-first ``(4, F, S)`` copy of ``q[:, joints]`` for ``q (F, J, 4)`` (one pass)."""
+    return np.moveaxis(q, -1, 0)[:, :, joints]
+
+
+def scatter_c(out: np.ndarray, joints: np.ndarray, qc: np.ndarray) -> None:
+    """``out[:, joints] = qc`` for ``out (F, J, 4)`` and component-first ``qc (4, F, S)`` (in place)."""
+    np.moveaxis(out, -1, 0)[:, :, joints] = qc
 
 
 def from_c(qc: np.ndarray) -> np.ndarray:
@@ -56,14 +70,17 @@ def align_signs(q: np.ndarray, axis: int = 1) -> np.ndarray:
     n = q.shape[axis]
     if n < 2:
         return q.copy()
-    head = np.take(q, np.arange(1, n), axis=axis)
-    tail = np.take(q, np.arange(0, n - 1), axis=axis)
-    flips = np.einsum("i...,i...->...", head, tail) < 0.0
-    parity = np.cumsum(flips, axis=axis - 1, dtype=np.int64) & 1
-    sign = 1.0 - 2.0 * parity
-    first = np.ones_like(np.take(sign, [0], axis=axis - 1))
-    sign = np.concatenate([first, sign], axis=axis - 1)
-    return q * sign[None]
+    head = (slice(None),) * axis + (slice(1, None),)
+    tail = (slice(None),) * axis + (slice(None, -1),)
+    flips = np.einsum("i...,i...->...", q[head], q[tail]) < 0.0
+    if not flips.any():
+        return q.copy()
+    parity = np.cumsum(flips, axis=axis - 1, dtype=np.int8) & 1  # int8 wraps, parity survives
+    out = q.copy()
+    flip = np.concatenate([np.zeros_like(parity[(slice(None),) * (axis - 1) + (slice(0, 1),)]), parity],
+                          axis=axis - 1).astype(bool)
+    out[:, flip] *= -1.0
+    return out
 
 
 def log(q: np.ndarray) -> np.ndarray:
@@ -129,3 +146,27 @@ def rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     w, u = q[0], q[1:]
     t = 2.0 * np.cross(u, v, axis=0)
     return v + w[None] * t + np.cross(u, t, axis=0)
+
+
+def _workers() -> int:
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        cores = os.cpu_count() or 1
+    return max(1, min(4, cores))
+
+
+def over_chunks(work: Callable[[np.ndarray], None], joints: np.ndarray, n_frames: int,
+                min_elements: int = 200_000) -> None:
+    """Run ``work(joint_indices)`` on a few chunks of ``joints`` in threads.
+
+    NumPy releases the GIL inside its array loops, so per-joint-chunk work on large
+    motions uses every core; small inputs run in one call. ``work`` must write disjoint
+    parts of its output.
+    """
+    workers = min(_workers(), len(joints), max(1, (len(joints) * n_frames) // min_elements))
+    if workers <= 1:
+        work(joints)
+        return
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        list(pool.map(work, np.array_split(joints, workers)))

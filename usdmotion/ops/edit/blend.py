@@ -277,11 +277,21 @@ def _blend_frames(m0, m1, index, selected, tau0, tau1, b, method, interp) -> Mot
     joints = np.flatnonzero(selected & ~m0.end_sites & (index >= 0))
     w = b[i1]
     full, part = w >= 1.0, w < 1.0  # only the transition needs interpolating
-    rotations[np.ix_(i1[full], joints)] = r1[np.ix_(np.flatnonzero(full), index[joints])]
+    if selected.all():  # whole body: the second motion's frames as they are, in the first's joint order
+        mapped = r1[np.flatnonzero(full)][:, np.maximum(index, 0)]
+        mapped[:, index < 0] = (1.0, 0.0, 0.0, 0.0)
+        rotations[i1[full]] = mapped
+    else:
+        rotations[np.ix_(i1[full], joints)] = r1[np.ix_(np.flatnonzero(full), index[joints])]
     mixed = Q.slerp if method == "slerp" else Q.nlerp
-    q0 = Q.to_c(rotations[np.ix_(i1[part], joints)])
-    q1 = Q.to_c(r1[np.ix_(np.flatnonzero(part), index[joints])])
-    rotations[np.ix_(i1[part], joints)] = Q.from_c(mixed(q0, q1, np.broadcast_to(w[part][:, None], q0.shape[1:])))
+    rows0, rows1, weight = i1[part], np.flatnonzero(part), w[part][:, None]
+
+    def mix(chunk: np.ndarray) -> None:
+        q0 = Q.gather_c(rotations[rows0], chunk)
+        q1 = Q.gather_c(r1[rows1], index[chunk])
+        rotations[np.ix_(rows0, chunk)] = Q.from_c(mixed(q0, q1, np.broadcast_to(weight, q0.shape[1:])))
+
+    Q.over_chunks(mix, joints, len(rows0))
     if whole_path:
         root[i1] = (1.0 - w)[:, None] * root[i1] + w[:, None] * root1
     if jt is not None and jt1 is not None:

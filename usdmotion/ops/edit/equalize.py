@@ -147,11 +147,12 @@ def _reference(q: np.ndarray, block: int) -> np.ndarray:
     while todo.size:
         starts = np.arange(0, n, size)
         counts = np.diff(np.append(starts, n))
-        means = np.add.reduceat(q[:, :, todo], starts, axis=1) / counts[None, :, None]
+        part = q if todo.size == q.shape[2] else q[:, :, todo]
+        means = np.add.reduceat(part, starts, axis=1) / counts[None, :, None]
         centres = starts + (counts - 1) / 2.0
         good = (np.sqrt(np.einsum("ibs,ibs->bs", means, means)).min(axis=0) > 0.25) | (size == 1)
         if size == 1:
-            values = q[:, :, todo]
+            values = part
         else:
             spline = make_interp_spline(centres, np.moveaxis(means[:, :, good], 1, 0), k=min(3, len(starts) - 1),
                                         axis=0)
@@ -162,17 +163,26 @@ def _reference(q: np.ndarray, block: int) -> np.ndarray:
     return ref
 
 
-def equalize_rotations(rotations: np.ndarray, gains) -> np.ndarray:
-    """Equalise local rotations ``(F, S, 4)`` wrap-safely (see the module docstring)."""
+def equalize_rotations(rotations: np.ndarray, gains, joints: np.ndarray | None = None) -> np.ndarray:
+    """Equalise local rotations ``(F, J, 4)`` wrap-safely (see the module docstring).
+
+    ``joints``: indices to filter (default all); returns a new ``(F, J, 4)`` array.
+    """
+    joints = np.arange(rotations.shape[1]) if joints is None else np.asarray(joints)
     needed = max((k + 1 for k, g in enumerate(gains) if float(g) != 1.0), default=0)
     _check_bands(rotations.shape[0], len(gains))
-    if rotations.shape[1] == 0:
-        return np.array(rotations)
-    q = Q.align_signs(Q.to_c(rotations), axis=1)
-    r = _reference(q, 2 ** (needed + 1))
-    d = Q.log(Q.mul(Q.conj(r), q))
-    d = equalize_signal(d, gains, axis=1)
-    return Q.from_c(Q.mul(r, Q.exp(d)))
+    out = np.array(rotations)
+    if joints.size == 0:
+        return out
+
+    def work(chunk: np.ndarray) -> None:
+        q = Q.align_signs(Q.gather_c(rotations, chunk), axis=1)
+        r = _reference(q, 2 ** (needed + 1))
+        d = equalize_signal(Q.log(Q.mul(Q.conj(r), q)), gains, axis=1)
+        Q.scatter_c(out, chunk, Q.mul(r, Q.exp(d)))
+
+    Q.over_chunks(work, joints, rotations.shape[0])
+    return out
 
 
 def equalize(motion: Motion, gains=None, preset: str | None = None, joint: str | None = None,
@@ -198,8 +208,7 @@ def equalize(motion: Motion, gains=None, preset: str | None = None, joint: str |
     _check_bands(motion.n_frames, len(gains))
     selected = select_joints(motion, joint, subtree)
     rot_joints = np.flatnonzero(selected & ~motion.end_sites)
-    rotations = np.array(motion.rotations)
-    rotations[:, rot_joints] = equalize_rotations(motion.rotations[:, rot_joints], gains)
+    rotations = equalize_rotations(motion.rotations, gains, rot_joints)
     root = np.array(motion.root_translation)
     jt = None if motion.joint_translations is None else np.array(motion.joint_translations)
     if translations:

@@ -36,17 +36,21 @@ def sample_rotations(rotations: np.ndarray, tau: np.ndarray, interp: str = "cubi
     whole = tau == np.round(tau)
     if whole.all():
         return np.ascontiguousarray(rotations[tau.astype(np.int64)])
-    q = Q.align_signs(Q.to_c(rotations), axis=1)
-    if interp == "cubic" and n >= 4:
-        from scipy.interpolate import make_interp_spline
+    out = np.empty((len(tau),) + rotations.shape[1:])
 
-        spline = make_interp_spline(np.arange(n, dtype=np.float64), np.moveaxis(q, 1, 0), k=3, axis=0)
-        out = Q.normalize(np.moveaxis(spline(tau), 0, 1))
-    else:
-        i0 = np.minimum(np.floor(tau).astype(np.int64), n - 2)
-        t = (tau - i0)[:, None]
-        out = Q.slerp(q[:, i0], q[:, i0 + 1], t)
-    return Q.from_c(out)
+    def work(chunk: np.ndarray) -> None:
+        q = Q.align_signs(Q.gather_c(rotations, chunk), axis=1)
+        if interp == "cubic" and n >= 4:
+            from scipy.interpolate import make_interp_spline
+
+            spline = make_interp_spline(np.arange(n, dtype=np.float64), np.moveaxis(q, 1, 0), k=3, axis=0)
+            Q.scatter_c(out, chunk, Q.normalize(np.moveaxis(spline(tau), 0, 1)))
+        else:
+            i0 = np.minimum(np.floor(tau).astype(np.int64), n - 2)
+            Q.scatter_c(out, chunk, Q.slerp(q[:, i0], q[:, i0 + 1], (tau - i0)[:, None]))
+
+    Q.over_chunks(work, np.arange(rotations.shape[1]), max(n, len(tau)))
+    return out
 
 
 def sample_values(values: np.ndarray, tau: np.ndarray, interp: str = "cubic") -> np.ndarray:
@@ -74,6 +78,11 @@ def sample_motion(motion: Motion, tau: np.ndarray, interp: str = "cubic",
     ``joints``: mask of joints to sample (others are copied from frame 0; cheaper when
     only a subtree is needed). End sites are never interpolated.
     """
+    tau = np.clip(np.asarray(tau, dtype=np.float64), 0.0, motion.n_frames - 1)
+    if np.all(tau == np.round(tau)):  # whole frames: one gather
+        frames = tau.astype(np.int64)
+        jt = None if motion.joint_translations is None else motion.joint_translations[frames]
+        return motion.rotations[frames], motion.root_translation[frames], jt
     mask = ~motion.end_sites if joints is None else (joints & ~motion.end_sites)
     idx = np.flatnonzero(mask)
     rotations = np.repeat(motion.rotations[:1], len(tau), axis=0)
