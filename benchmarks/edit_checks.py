@@ -81,12 +81,19 @@ def cycle_check(data: Path) -> tuple[dict, dict]:
     step0, jerk0 = steps(joint_positions(E.trim(m, start, stop)))
     fade = np.concatenate([np.arange(period - n - 1, period + 1) + k * period for k in range(loops - 1)])
     per_loop = np.linalg.norm(np.diff(out.root_translation[::period][:, [0, 2]], axis=0), axis=1)
+    # the same gait phase in the original: output frame k shows loop frame (k + n) mod P, which is original frame
+    # start + φ (or a fade of start + φ and start + P + φ); compare the seam frames with both
+    _, jerk_all = steps(joint_positions(m))
+    phase = (fade[:-1] + 1 + n) % period  # jerk[k] is centred on output frame k + 1
+    same_phase = np.maximum(jerk_all[start + phase - 1], jerk_all[np.minimum(start + period + phase - 1,
+                                                                               len(jerk_all) - 1)])
     figures = {
         "range": [start, int(stop)], "transition": n, "loops": loops, "period": int(period),
         "seam_max_step": float(step[fade].max()), "original_max_step": float(step0.max()),
         "original_median_step": float(np.median(step0)),
         "seam_max_velocity_change": float(jerk[fade[:-1]].max()), "original_max_velocity_change": float(jerk0.max()),
         "original_median_velocity_change": float(np.median(jerk0)),
+        "seam_velocity_change_minus_same_phase_original_max": float((jerk[fade[:-1]] - same_phase).max()),
         "travel_per_loop": [float(v) for v in per_loop],
         "original_travel_per_period": float(np.linalg.norm(np.diff(m.root_translation[[start, start + period]][:, [0, 2]],
                                                                     axis=0))),
