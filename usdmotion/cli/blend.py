@@ -11,7 +11,10 @@ from usdmotion.cli._edit import Interp, Joint, Keys, Output, Subtree, parse_keys
 from usdmotion.cli._options import InputPath, UpAxis, Units, read_input
 from usdmotion.cli.app import app
 
-Time = Annotated[str | None, typer.Option(help="Frames or seconds (0.5s).", show_default=False)]
+
+
+def _time(text: str):
+    return Annotated[str | None, typer.Option(help=text + " Frames, or seconds like 0.5s.", show_default=False)]
 
 
 @app.command()
@@ -19,7 +22,9 @@ def blend(
     source: InputPath,
     other: Annotated[Path, typer.Argument(help="The motion to blend into.", show_default=False)],
     output: Output,
-    transition: Time = None, at: Time = None, offset: Time = None,
+    transition: _time("Length of the blend ramp (default 0.5 s).") = None,
+    at: _time("Output frame where the ramp starts (default: it ends with FIRST).") = None,
+    offset: _time("Output frame where SECOND's frame 0 plays (default: at, or found by --align).") = None,
     speed0: Annotated[float, typer.Option(help="Speed of the first motion.")] = 1.0,
     speed1: Annotated[float, typer.Option(help="Speed of the second motion.")] = 1.0,
     align: Annotated[str, typer.Option(help="Timing: none, peaks (needs --align-joint) or dtw.")] = "none",
