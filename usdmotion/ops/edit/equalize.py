@@ -77,19 +77,40 @@ def _index(axis: int, sl: slice) -> tuple:
 
 
 def atrous_level(x: np.ndarray, level: int, axis: int = 0) -> np.ndarray:
-    """One à-trous smoothing step ``G_{k+1}`` of ``G_k = x`` at ``level`` k (mirrored borders)."""
+    """One à-trous smoothing step ``G_{k+1}`` of ``G_k = x`` at ``level`` k.
+
+    Past the ends the signal is point-reflected (``x[−i] = 2x[0] − x[i]``); the interior
+    is computed from slices of ``x`` directly, only the borders from a padded copy.
+    """
     n = x.shape[axis]
     step = 1 << level
-    pad = [(0, 0)] * x.ndim
-    pad[axis] = (2 * step, 2 * step)
-    p = np.pad(x, pad, mode="reflect", reflect_type="odd")  # x[-i] = 2x[0] - x[i] (point reflection)
     a, b, c = KERNEL[2], KERNEL[1], KERNEL[0]
-    out = p[_index(axis, slice(0, n))] + p[_index(axis, slice(4 * step, 4 * step + n))]
-    out *= c
-    near = p[_index(axis, slice(step, step + n))] + p[_index(axis, slice(3 * step, 3 * step + n))]
-    near *= b
-    out += near
-    out += a * x
+    out = np.empty_like(x, dtype=np.float64)
+    reach = 2 * step
+    if n > 2 * reach:  # interior: i ± 2·step inside the signal
+        inner = _index(axis, slice(reach, n - reach))
+        sl = lambda lo: x[_index(axis, slice(lo, lo + n - 2 * reach))]  # noqa: E731
+        acc = out[inner]
+        np.add(sl(0), sl(4 * step), out=acc)
+        acc *= c
+        near = sl(step) + sl(3 * step)
+        near *= b
+        acc += near
+        acc += a * x[inner]
+        edges = [(0, reach), (n - reach, n)]
+    else:
+        edges = [(0, n)]
+    pad = [(0, 0)] * x.ndim
+    pad[axis] = (reach, reach)
+    for lo, hi in edges:  # borders: from a padded piece of the signal
+        src_lo, src_hi = max(0, lo - 2 * reach), min(n, hi + 2 * reach)
+        piece = x[_index(axis, slice(src_lo, src_hi))]
+        padded = np.pad(piece, [(0, 0)] * axis + [(reach if src_lo == 0 else 0, reach if src_hi == n else 0)]
+                        + [(0, 0)] * (x.ndim - axis - 1), mode="reflect", reflect_type="odd")
+        start = lo - src_lo + (reach if src_lo == 0 else 0)  # position of x[lo] in padded
+        width = hi - lo
+        tap = lambda k: padded[_index(axis, slice(start + k * step, start + k * step + width))]  # noqa: E731
+        out[_index(axis, slice(lo, hi))] = c * (tap(-2) + tap(2)) + b * (tap(-1) + tap(1)) + a * tap(0)
     return out
 
 
