@@ -43,10 +43,25 @@ def mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Hamilton product ``a * b`` of component-first quaternions (broadcasting)."""
     aw, ax, ay, az = a
     bw, bx, by, bz = b
-    return np.stack([aw * bw - ax * bx - ay * by - az * bz,
-                     aw * bx + ax * bw + ay * bz - az * by,
-                     aw * by - ax * bz + ay * bw + az * bx,
-                     aw * bz + ax * by - ay * bx + az * bw])
+    out = np.empty((4,) + np.broadcast_shapes(aw.shape, bw.shape))
+    w, x, y, z = out  # written in place: no stacking copy
+    np.multiply(aw, bw, out=w)
+    w -= ax * bx
+    w -= ay * by
+    w -= az * bz
+    np.multiply(aw, bx, out=x)
+    x += ax * bw
+    x += ay * bz
+    x -= az * by
+    np.multiply(aw, by, out=y)
+    y -= ax * bz
+    y += ay * bw
+    y += az * bx
+    np.multiply(aw, bz, out=z)
+    z += ax * by
+    z -= ay * bx
+    z += az * bw
+    return out
 
 
 def conj(q: np.ndarray) -> np.ndarray:
