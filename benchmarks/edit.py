@@ -88,7 +88,8 @@ def main() -> int:
         rows.append({"operation": name, "median_ms": round(median, 2), "min_ms": round(min(times), 2),
                      "output_frames": out.n_frames, "goal_ms": GOAL_MS, "ratio_to_goal": round(median / GOAL_MS, 3),
                      "met": median <= GOAL_MS})
-        print(f"{name:36s} {median:10.1f} {min(times):8.1f} {out.n_frames:10d}  {'met' if median <= GOAL_MS else 'NOT met'}")
+        verdict = "met" if median <= GOAL_MS else "NOT met"
+        print(f"{name:36s} {median:10.1f} {min(times):8.1f} {out.n_frames:10d}  {verdict}")
     result = {"benchmark": "edit", "frames": m.n_frames, "joints": int((~m.end_sites).sum()),
               "end_sites": int(m.end_sites.sum()), "fps": m.fps, "repeat": args.repeat, "goal_ms": GOAL_MS,
               "machine": {"python": platform.python_version(), "numpy": np.__version__, "cpus": os.cpu_count(),

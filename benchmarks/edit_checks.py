@@ -95,8 +95,8 @@ def cycle_check(data: Path) -> tuple[dict, dict]:
         "original_median_velocity_change": float(np.median(jerk0)),
         "seam_velocity_change_minus_same_phase_original_max": float((jerk[fade[:-1]] - same_phase).max()),
         "travel_per_loop": [float(v) for v in per_loop],
-        "original_travel_per_period": float(np.linalg.norm(np.diff(m.root_translation[[start, start + period]][:, [0, 2]],
-                                                                    axis=0))),
+        "original_travel_per_period": float(np.linalg.norm(
+            m.root_translation[start + period, [0, 2]] - m.root_translation[start, [0, 2]])),
         "file_unit_cm": ASF_CM,
     }
     return figures, {"out": out, "step": step, "jerk": jerk, "period": period, "n": n, "step0": step0}

@@ -37,7 +37,9 @@ def test_half_speed_slerp_matches_scipy():
 
 def test_cubic_beats_linear_on_a_smooth_rotation():
     t = np.arange(30.0)
-    truth = lambda s: Rotation.from_rotvec(np.stack([0.6 * np.sin(s / 4), 0.3 * np.cos(s / 5), 0.2 * s / 30], 1))  # noqa: E731
+    def truth(s):
+        return Rotation.from_rotvec(np.stack([0.6 * np.sin(s / 4), 0.3 * np.cos(s / 5), 0.2 * s / 30], 1))
+
     keys = truth(t).as_quat(scalar_first=True)[:, None]
     fine = np.linspace(0, 29, 300)
     exact = truth(fine).as_quat(scalar_first=True)

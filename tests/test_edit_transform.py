@@ -88,7 +88,8 @@ def test_layer_adds_a_curve_about_the_local_axis():
     keys = [(0, 0.0), (30, 25.0), (89, -10.0)]
     out = layer(m, "Head", "rx", keys)
     curve = CubicSpline([0, 30, 89], [0.0, 25.0, -10.0], bc_type="clamped")(np.arange(90))
-    ref = Rotation.from_quat(m.rotations[:, 2], scalar_first=True) * Rotation.from_euler("x", curve[:, None], degrees=True)
+    ref = (Rotation.from_quat(m.rotations[:, 2], scalar_first=True)
+           * Rotation.from_euler("x", curve[:, None], degrees=True))
     assert np.max(angle_between(out.rotations[:, 2], ref.as_quat(scalar_first=True))) < 1e-9
     lifted = layer(m, "Hips", "ty", [(0, 0.0), (89, 9.0)])
     np.testing.assert_allclose(lifted.root_translation[-1, 1] - m.root_translation[-1, 1], 9.0)

@@ -24,8 +24,10 @@ def displace(
     move: Annotated[KeyList, typer.Option(help="JOINT@FRAME=X,Y,Z: add to the joint's translation at FRAME.",
                                           show_default=False)] = None,
     falloff: Annotated[str | None, typer.Option(help="Ease in/out over this many frames (or 0.5s) around the keys; "
-                                                     "default: the change holds before/after.", show_default=False)] = None,
-    frame: Annotated[str, typer.Option(help="Rotation changes in the joint's own frame (local) or its parent's.")] = "local",
+                                                     "default: the change holds before/after.",
+                                                show_default=False)] = None,
+    frame: Annotated[str, typer.Option(help="Rotation changes in the joint's own frame (local) or its "
+                                            "parent's.")] = "local",
     units: Units = None, up_axis: UpAxis = None, root_offset: RootOffset = RootOffsetChoice.auto,
 ) -> None:
     """Change a few poses; a smooth spline through the changes edits everything in between."""

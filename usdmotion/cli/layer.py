@@ -21,7 +21,8 @@ def layer(
     key: Keys = None,
     falloff: Annotated[str | None, typer.Option(help="Ease in/out over this many frames (or seconds) around the "
                                                      "keys.", show_default=False)] = None,
-    frame: Annotated[str, typer.Option(help="Rotation axis of the joint's own frame (local) or its parent's.")] = "local",
+    frame: Annotated[str, typer.Option(help="Rotation axis of the joint's own frame (local) or its "
+                                            "parent's.")] = "local",
     units: Units = None, up_axis: UpAxis = None, root_offset: RootOffset = RootOffsetChoice.auto,
 ) -> None:
     """Add a keyed curve (--key FRAME=VALUE, repeatable) to one channel of one joint."""

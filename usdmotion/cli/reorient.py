@@ -18,7 +18,8 @@ def reorient(
     rotate: Annotated[float | None, typer.Option(help="Turn by DEG about the up axis (right-handed), around the "
                                                       "start position.", show_default=False)] = None,
     heading: Annotated[float | None, typer.Option(help="New travel direction in degrees: 0 = +Z (Y-up) or +X "
-                                                       "(Z-up), 90 = +X (Y-up) or +Y (Z-up).", show_default=False)] = None,
+                                                       "(Z-up), 90 = +X (Y-up) or +Y (Z-up).",
+                                                  show_default=False)] = None,
     position: Annotated[str | None, typer.Option(help="New start position: 'X,Z' (Y-up) / 'X,Y' (Z-up) on the "
                                                       "ground, or 'X,Y,Z'.", show_default=False)] = None,
     translate: Annotated[str | None, typer.Option(help="Move by 'X,Y,Z' file units.", show_default=False)] = None,

@@ -196,5 +196,6 @@ def trim(motion: Motion, start: int | None = None, stop: int | None = None) -> M
     lo, hi = frame_range(motion, start, stop, "trim range")
     sc = None if motion.source_channels is None else motion.source_channels[lo:hi]
     jt = None if motion.joint_translations is None else motion.joint_translations[lo:hi]
-    return dataclasses.replace(motion, rotations=motion.rotations[lo:hi], root_translation=motion.root_translation[lo:hi],
+    return dataclasses.replace(motion, rotations=motion.rotations[lo:hi],
+                               root_translation=motion.root_translation[lo:hi],
                                joint_translations=jt, source_channels=sc)
