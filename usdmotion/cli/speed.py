@@ -1,0 +1,35 @@
+"""``usdmotion speed IN OUT``: time-warp by a constant factor or a keyed speed curve."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+import typer
+
+from usdmotion.cli._edit import Interp, Joint, Keys, Output, Subtree, parse_keys, run_edit
+from usdmotion.cli._options import InputPath, RootOffset, RootOffsetChoice, UpAxis, Units
+from usdmotion.cli.app import app
+
+
+@app.command()
+def speed(
+    source: InputPath,
+    output: Output,
+    factor: Annotated[float | None, typer.Option(help="Constant speed: 2 plays twice as fast (half the frames).",
+                                                 show_default=False)] = None,
+    key: Keys = None,
+    joint: Joint = None,
+    subtree: Subtree = False,
+    interp: Interp = "cubic",
+    units: Units = None,
+    up_axis: UpAxis = None,
+    root_offset: RootOffset = RootOffsetChoice.auto,
+) -> None:
+    """Change the playing speed; --key SOURCE_FRAME=SPEED (repeatable) gives a smooth speed curve."""
+    from usdmotion.ops.edit import speed as op
+
+    def apply(motion):
+        return op(motion, factor=factor, keys=parse_keys(key, motion.fps), joint=joint, subtree=subtree,
+                  interp=interp)
+
+    run_edit(source, output, apply, f"speed {factor if factor is not None else 'curve'}", units, up_axis, root_offset)
