@@ -20,11 +20,11 @@ echo "== 3. USD -> BVH (round trip)"
 $U convert "$OUT/walk.usdz" "$OUT/walk_roundtrip.bvh"
 echo "== 4. same joint positions after the round trip (frame 100, left foot)"
 $U positions "$IN" --frames 100 --joints LeftFoot,RightHand --units asf
-$U positions "$OUT/walk_roundtrip.bvh" --frames 100 --joints LeftFoot,RightHand
+$U positions "$OUT/walk_roundtrip.bvh" --frames 100 --joints LeftFoot,RightHand --units asf
 echo "== 5. a skinned volumetric body bound to the skeleton (opens skinned in Blender, Maya, Houdini, Omniverse)"
 $U convert "$IN" "$OUT/walk_body.usdz" --units asf --mesh
 echo "== 6. feedback video: side view, body, wrist and centre-of-mass paths (frame 0 is cgspeed's T-pose: skipped)"
 $U render "$IN" "$OUT/walk_side.mp4" --units asf --frames 1:524 --fps 30 --trace LeftHand --trace com
-$U render "$IN" "$OUT/stills/####.png" --units asf --frames 1:524:60 --camera front --style both --size 640x480
+$U render "$IN" "$OUT/stills/####.png" --units asf --frames 1:524 --fps 2 --camera front --style both --size 640x480
 echo "demo outputs in $OUT/:"
 ls -la "$OUT"

@@ -14,7 +14,7 @@ def progress(description: str, total: float | None = None, delay: float = 1.0,
     """Yield ``update(advance=0, description=None, total=None)``; a rich bar (or spinner,
     without ``total``) is drawn on stderr once ``delay`` seconds have passed.
 
-    Nothing is drawn when stderr is not a terminal and the work is short.
+    Nothing is drawn when stderr is not a terminal (logs, pipes, CI) or the work is short.
     """
     from rich.console import Console
     from rich.progress import (BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn,
@@ -36,7 +36,8 @@ def progress(description: str, total: float | None = None, delay: float = 1.0,
 
     timer = threading.Timer(delay, start)
     timer.daemon = True
-    timer.start()
+    if console.is_terminal:
+        timer.start()
     import time
 
     t0 = time.perf_counter()
