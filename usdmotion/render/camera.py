@@ -15,8 +15,9 @@ from pathlib import Path
 import numpy as np
 
 from usdmotion.errors import InputError, UsdMotionError
+from usdmotion.resources import resource_path
 
-PRESETS_FILE = Path(__file__).resolve().parents[2] / "render" / "cameras.yaml"
+PRESETS_FILE = resource_path("render", "cameras.yaml")
 _USD_CAMERA = re.compile(r"^(?P<file>.+\.usd[acz]?)(?::(?P<prim>/.*))?$", re.IGNORECASE)
 UP = np.array([0.0, 1.0, 0.0])
 

@@ -17,8 +17,9 @@ from pathlib import Path
 from usdmotion.errors import InputError
 from usdmotion.motion import Motion
 from usdmotion.ops.edit._common import EditError, frames_of
+from usdmotion.resources import resource_path
 
-SCHEMA_PATH = Path(__file__).resolve().parents[3] / "schemas" / "edit-pipeline.schema.json"
+SCHEMA_PATH = resource_path("schemas", "edit-pipeline.schema.json")
 
 
 @lru_cache(maxsize=1)
