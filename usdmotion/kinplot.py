@@ -34,13 +34,19 @@ def _figure(width: float, height: float):
     return fig
 
 
-def _save(fig, path: str | os.PathLike) -> Path:
+def image_path(path: str | os.PathLike) -> Path:
+    """``path`` if its extension is an image format we write, else ``OutputError``."""
     path = Path(path)
-    ext = path.suffix.lower()
-    if ext not in IMAGE_FORMATS:
+    if path.suffix.lower() not in IMAGE_FORMATS:
         raise OutputError(f"{path}: unknown image format {path.suffix!r} (use {', '.join(IMAGE_FORMATS)})")
+    return path
+
+
+def _save(make_figure, path: str | os.PathLike) -> Path:
+    path = image_path(path)
+    fig = make_figure()
     with atomic_output(path) as tmp:
-        fig.savefig(tmp, format=ext[1:])
+        fig.savefig(tmp, format=path.suffix.lower()[1:])
     return path
 
 
@@ -87,6 +93,12 @@ def default_plot_joints(kin: Kinematics) -> tuple[list[int], list[int]]:
 def plot_kinematics(kin: Kinematics, path: str | os.PathLike, joints: list[int] | None = None,
                     title: str | None = None) -> Path:
     """Joint angles, speeds and trajectories of ``kin`` in one figure (PNG/PDF/SVG)."""
+    return _save(lambda: kinematics_figure(kin, joints, title), path)
+
+
+def kinematics_figure(kin: Kinematics, joints: list[int] | None = None, title: str | None = None):
+    """The figure of :func:`plot_kinematics` (a ``matplotlib.figure.Figure``; axes: angles,
+    speed, top view, side view)."""
     angle_joints, moving = default_plot_joints(kin) if not joints else (list(joints), list(joints))
     fig = _figure(12, 10)
     grid = fig.add_gridspec(3, 2, height_ratios=[1.2, 1, 1])
@@ -123,7 +135,7 @@ def plot_kinematics(kin: Kinematics, path: str | os.PathLike, joints: list[int] 
             ax.legend(fontsize=7, loc="best")
     if title:
         fig.suptitle(title)
-    return _save(fig, path)
+    return fig
 
 
 def _bones(motion: Motion, positions: np.ndarray) -> list[tuple[int, int]]:
@@ -139,6 +151,13 @@ def plot_strip(motion: Motion, path: str | os.PathLike, frames: list[int] | None
     Side view (forward direction against height, see :func:`view_axes`). ``mark_origin``
     draws a dot at the world origin (the bar of the giant swing).
     """
+    return _save(lambda: strip_figure(motion, frames, columns, title, mark_origin), path)
+
+
+def strip_figure(motion: Motion, frames: list[int] | None = None, columns: int = 12, title: str | None = None,
+                 mark_origin: bool = False):
+    """The figure of :func:`plot_strip`; its first axes hold one line per bone and frame
+    (in frame order), then one dotted trajectory per leaf joint."""
     from matplotlib import cm
 
     positions = joint_positions(motion)
@@ -174,4 +193,4 @@ def plot_strip(motion: Motion, path: str | os.PathLike, frames: list[int] | None
             small.plot([0], [0], "k.", ms=4)
         small.set(xlim=(cu - span, cu + span), ylim=(cv - span, cv + span), aspect="equal", xticks=[], yticks=[])
         small.set_title(f"{f / motion.fps:.2f} s", fontsize=7)
-    return _save(fig, path)
+    return fig
