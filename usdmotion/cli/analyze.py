@@ -48,6 +48,12 @@ def analyze(
     from usdmotion.ops.analyse_report import write_kinematics, write_summary
     from usdmotion.ops.smoothing import FilterSpec
 
+    from usdmotion.kinplot import image_path
+    from usdmotion.ops.analyse_report import table_path
+
+    for path, check in ((out, table_path), (plot, image_path)):  # fail before the work, not after
+        if path is not None:
+            check(path)
     motion, first = prepare(source, units, up_axis, root_offset, lenient, frames)
     body = body_for(motion, source, com, sex, segments)
     kin = analyse(motion, FilterSpec(filter.value, cutoff), euler_order, body, mass, not file_units, first, str(source))

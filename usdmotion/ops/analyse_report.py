@@ -225,13 +225,19 @@ def _json_default(value):
     raise TypeError(f"not JSON serialisable: {type(value).__name__}")
 
 
+def table_path(path: str | os.PathLike) -> Path:
+    """``path`` if its extension is a table format we write, else ``OutputError``."""
+    path = Path(path)
+    if path.suffix.lower() not in TABLE_FORMATS:
+        raise OutputError(f"{path}: unknown table format {path.suffix!r} (use {', '.join(TABLE_FORMATS)})")
+    return path
+
+
 def write_kinematics(kin: Kinematics, path: str | os.PathLike, joints: list[int] | None = None,
                      source: str | None = None) -> Path:
     """Write the per-frame table as ``.csv``, ``.parquet`` or ``.json`` (with the summary)."""
-    path = Path(path)
+    path = table_path(path)
     ext = path.suffix.lower()
-    if ext not in TABLE_FORMATS:
-        raise OutputError(f"{path}: unknown table format {path.suffix!r} (use {', '.join(TABLE_FORMATS)})")
     table = kinematics_table(kin, joints)
     with atomic_output(path) as tmp:
         if ext == ".csv":
