@@ -20,11 +20,12 @@ Conventions (see ``docs/analyze.md``):
 * **Segment orientation**: the joint's world rotation (wxyz quaternion) = orientation of
   the segment (bone) that the joint drives.
 * **Angular velocity** from quaternions, never from differentiated Euler angles:
-  ``omega`` = angular velocity of the segment in the world frame (``2 q̇ q*``),
   ``omega_rel`` = of the joint relative to its parent, expressed in the joint's own
-  frame (``2 q_local* q̇_local``, the convention of pybvh's ``angular_velocities``).
-  Quaternion components are made continuous (no sign flips) and filtered like
-  positions; ``alpha``/``alpha_rel`` are the time derivatives of those vectors.
+  frame (``2 q_local* q̇_local``, the convention of pybvh's ``angular_velocities``);
+  local quaternion components are made continuous (no sign flips) and filtered like
+  positions; ``alpha_rel`` is the time derivative of ``omega_rel``. ``omega``/``alpha``
+  = angular velocity/acceleration of the segment in the world frame, composed exactly
+  from the relative rates down the hierarchy (:func:`world_rates`).
 * **Centre of mass** from a body-segment model (:mod:`usdmotion.anthropometry`):
   whole-body ``com`` and ``segment_com``; ``momentum`` = body mass × COM velocity (kg·m/s,
   lengths always metres) when a mass is given.
@@ -138,6 +139,42 @@ def angular_rates(q: np.ndarray, q_dot: np.ndarray, q_ddot: np.ndarray,
 
     omega = rate(q_dot)
     alpha = rate(q_ddot) - omega * (2.0 * np.sum(q * q_dot, axis=0) / n)
+    return omega, alpha
+
+
+def _rotate_cf(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Rotate component-first vectors ``v (3, ...)`` by unit wxyz ``q (4, ...)``:
+    ``v + 2w (u × v) + 2 u × (u × v)`` with ``u`` the vector part."""
+    w, u = q[0], q[1:]
+    t = 2.0 * _cross(u, v)
+    return v + w * t + _cross(u, t)
+
+
+def world_rates(world_q: np.ndarray, omega_rel: np.ndarray, alpha_rel: np.ndarray,
+                parents: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """World angular velocity and acceleration of every segment from the relative rates
+    (each in its joint's own frame), summed down the tree:
+
+    ``ω_j = ω_parent + R_j ω_rel,j`` and ``α_j = α_parent + ω_j × (R_j ω_rel,j) + R_j α_rel,j``
+    (``R_j`` = world rotation of joint ``j``; ``d/dt (R_j v) = ω_j × R_j v + R_j v̇``).
+
+    Component-first arrays: ``world_q (4, J, F)``, rates ``(3, J, F)``; returns two
+    ``(3, J, F)``. One step per depth level, all frames at once.
+    """
+    from usdmotion.kinematics import depth_levels
+
+    u = _rotate_cf(world_q, omega_rel)
+    w = _rotate_cf(world_q, alpha_rel)
+    levels = depth_levels(parents)
+    omega = np.empty_like(u)
+    for idx, _ in levels:
+        parent = parents[idx]
+        omega[:, idx] = u[:, idx] if parent[0] < 0 else omega[:, parent] + u[:, idx]
+    w += _cross(omega, u)
+    alpha = np.empty_like(w)
+    for idx, _ in levels:
+        parent = parents[idx]
+        alpha[:, idx] = w[:, idx] if parent[0] < 0 else alpha[:, parent] + w[:, idx]
     return omega, alpha
 
 
@@ -283,30 +320,29 @@ def analyse(motion: Motion, filter: FilterSpec = FilterSpec(), euler_order: str 
     positions = world_p * scale
     n_frames, n_joints = positions.shape[:2]
     rot = np.flatnonzero(~np.asarray(motion.end_sites))  # end sites have no rotation of their own
-    # every signal as one (channels, frames) array, time last: positions, world and local quaternions
+    # every signal as one (channels, frames) array, time last: positions and local quaternions
     stacked = np.concatenate([
         np.moveaxis(positions, 0, -1).reshape(-1, n_frames),
-        np.moveaxis(_continuous(world_q[:, rot]), 0, -1).reshape(-1, n_frames),
         np.moveaxis(_continuous(np.asarray(motion.rotations)[:, rot]), 0, -1).reshape(-1, n_frames),
     ])
     smooth, d1, d2 = smooth_derivatives(stacked, fps, filter, axis=-1)
-    n_pos, n_rot = 3 * n_joints, 4 * len(rot)
+    n_pos = 3 * n_joints
 
-    def quats(a: np.ndarray, k: int) -> np.ndarray:  # (4, R, F) component-first
-        return np.moveaxis(a[n_pos + k * n_rot:n_pos + (k + 1) * n_rot].reshape(len(rot), 4, n_frames), 1, 0)
+    def quats(a: np.ndarray) -> np.ndarray:  # (4, R, F) component-first
+        return np.moveaxis(a[n_pos:].reshape(len(rot), 4, n_frames), 1, 0)
 
-    def joints_first(a: np.ndarray) -> np.ndarray:  # (3, R, F) -> (F, J, 3), end sites filled below
-        out = np.zeros((n_frames, n_joints, 3))
-        out[:, rot] = np.moveaxis(a, (0, 1, 2), (2, 1, 0))
+    def all_joints(a: np.ndarray) -> np.ndarray:  # (3, R, F) -> (3, J, F), zero for end sites
+        out = np.zeros((3, n_joints, n_frames))
+        out[:, rot] = a
         return out
 
-    omega, alpha = (joints_first(np.degrees(a)) for a in
-                    angular_rates(quats(smooth, 0), quats(d1, 0), quats(d2, 0), body=False))
-    omega_rel, alpha_rel = (joints_first(np.degrees(a)) for a in
-                            angular_rates(quats(smooth, 1), quats(d1, 1), quats(d2, 1), body=True))
-    ends = np.flatnonzero(motion.end_sites)
-    for j in ends:  # an end site turns with its parent
-        omega[:, j], alpha[:, j] = omega[:, motion.parents[j]], alpha[:, motion.parents[j]]
+    # component-first (3, J, F) while computing; the Kinematics fields are (F, J, 3) views
+    omega_rel, alpha_rel = (all_joints(a) for a in angular_rates(quats(smooth), quats(d1), quats(d2), body=True))
+    world_cf = np.ascontiguousarray(np.moveaxis(world_q, (0, 1, 2), (2, 1, 0)))  # (4, J, F)
+    omega, alpha = world_rates(world_cf, omega_rel, alpha_rel, motion.parents)
+
+    def frames_first(a: np.ndarray) -> np.ndarray:  # (3, J, F) -> (F, J, 3) degrees, a view
+        return np.moveaxis(np.degrees(a, out=a), (0, 1, 2), (2, 1, 0))
 
     def per_joint(a: np.ndarray) -> np.ndarray:  # (3J, F) -> (F, J, 3)
         return np.moveaxis(a[:n_pos].reshape(n_joints, 3, n_frames), -1, 0)
@@ -318,7 +354,8 @@ def analyse(motion: Motion, filter: FilterSpec = FilterSpec(), euler_order: str 
         filter=filter, time=(first_frame + np.arange(n_frames)) / fps,
         positions=positions, velocities=per_joint(d1), accelerations=per_joint(d2), orientations=world_q,
         euler=euler, euler_orders=orders, bend=bend_angles(positions, bend_triples(motion), n_joints),
-        omega=omega, alpha=alpha, omega_rel=omega_rel, alpha_rel=alpha_rel,
+        omega=frames_first(omega), alpha=frames_first(alpha), omega_rel=frames_first(omega_rel),
+        alpha_rel=frames_first(alpha_rel),
     )
     if body is not None:
         kin = _with_com(kin, body, mass, motion.meters_per_unit if not si else 1.0)
