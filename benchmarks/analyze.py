@@ -111,8 +111,10 @@ def main() -> int:
         print(f"{name:34s} {row['median_s']:9.3f} {row['min_s']:8.3f} {row['cpu_median_s']:8.3f}")
     ratio = None
     if peer is not None:
-        ratio = rows["peer: pybvh read + derivatives"]["median_s"] / rows["end to end (read .. parquet)"]["median_s"]
-        print(f"pybvh {peer} (read + 3 derivative passes) takes {ratio:.2f}x our end-to-end time")
+        ours = rows["read"]["median_s"] + rows["analyse"]["median_s"]
+        ratio = rows["peer: pybvh read + derivatives"]["median_s"] / ours
+        print(f"pybvh {peer} read + velocities, accelerations, angular velocities (unfiltered): {ratio:.2f}x the time "
+              f"of our read + full analysis ({ours:.3f} s)")
     met = rows["analyse"]["median_s"] < GOAL_S
     print(f"goal: analyse < {GOAL_S} s: {'met' if met else 'NOT met'} ({rows['analyse']['median_s']:.3f} s)")
     out = ROOT / "benchmarks" / "results" / "analyze.json"
@@ -120,7 +122,8 @@ def main() -> int:
     out.write_text(json.dumps({
         "benchmark": "analyze", "frames": motion.n_frames, "joints": n_joints,
         "end_sites": int(motion.end_sites.sum()), "repeat": args.repeat, "goal_s": GOAL_S, "goal_met": met,
-        "stages": rows, "peer": {"name": "pybvh", "version": peer, "ratio_to_end_to_end": ratio},
+        "stages": rows, "peer": {"name": "pybvh", "version": peer, "work": "read + node velocities + accelerations + angular velocities",
+                 "ratio_peer_over_read_plus_analyse": ratio},
         "machine": {"python": platform.python_version(), "processor": platform.processor() or platform.machine()},
     }, indent=1) + "\n")
     print(f"wrote {out}")
