@@ -312,3 +312,15 @@ def test_com_of_cmu_walk_stays_in_the_body_and_oscillates_a_few_cm(walk):
     assert np.allclose(kin.momentum, 70.0 * kin.com_velocity)
     _, d1, _ = smooth_derivatives(kin.com, kin.fps, kin.filter)
     assert np.allclose(kin.com_velocity, d1, atol=1e-9)
+
+
+def test_short_motions():
+    """Two frames: the chord (difference quotient); one frame: an error, not zeros."""
+    motion = synthesize([JointSpec("a", end_site=(1, 0, 0))], {"a": {"Z": [0.0, 9.0]}}, fps=10, meters_per_unit=1.0)
+    kin = analyse(motion, FilterSpec("butter", 2.0))
+    # 9 degrees in 0.1 s; the quaternion chord is 0.1 % shorter than the arc
+    assert np.allclose(kin.omega_rel[:, 0, 2], 90.0, rtol=2e-3) and np.all(np.abs(kin.alpha_rel) < 10.0)
+    tip_speed = np.linalg.norm(kin.velocities[:, 1], axis=1)
+    assert np.allclose(tip_speed, np.linalg.norm([np.cos(np.radians(9)) - 1, np.sin(np.radians(9))]) * 10)
+    with pytest.raises(InputError, match=r"one\.bvh: 1 frame\(s\): velocities need at least 2"):
+        analyse(slice_frames(motion, 0, 1), source="one.bvh")

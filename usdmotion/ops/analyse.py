@@ -39,7 +39,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from usdmotion.anthropometry import BodyModel, children_map, distal_joints, proximal_joint
-from usdmotion.errors import InputError, UsdMotionError
+from usdmotion.errors import InputError
 from usdmotion.kinematics import rest_positions, world_rotations_positions
 from usdmotion.motion import Motion
 from usdmotion.ops.smoothing import FilterSpec, smooth_derivatives
@@ -307,10 +307,12 @@ def analyse(motion: Motion, filter: FilterSpec = FilterSpec(), euler_order: str 
         source: file name for error messages.
 
     Raises:
-        InputError: non-finite values in the motion, or a bad mass.
+        InputError: non-finite values in the motion, fewer than 2 frames, or a bad mass.
         ValueError: bad filter options.
     """
     _check_finite(motion, source)
+    if motion.n_frames < 2:
+        raise InputError(source, f"{motion.n_frames} frame(s): velocities need at least 2")
     if mass is not None and not (np.isfinite(mass) and mass > 0):
         raise InputError(source, f"--mass must be a positive number of kilograms, got {mass}")
     fps = motion.fps
@@ -386,9 +388,3 @@ def select_joints(kin: Kinematics, joints: list[str] | None, source: str | None 
             raise InputError(source, f"no joint named {name!r}{hint}")
         index.append(kin.joint_names.index(name))
     return index
-
-
-def require_frames(motion: Motion, source: str | None) -> None:
-    """Analysis needs at least two frames."""
-    if motion.n_frames < 2:
-        raise UsdMotionError(f"{source or '<input>'}: {motion.n_frames} frame(s); analysis needs at least 2")
