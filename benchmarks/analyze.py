@@ -122,8 +122,9 @@ def main() -> int:
     out.write_text(json.dumps({
         "benchmark": "analyze", "frames": motion.n_frames, "joints": n_joints,
         "end_sites": int(motion.end_sites.sum()), "repeat": args.repeat, "goal_s": GOAL_S, "goal_met": met,
-        "stages": rows, "peer": {"name": "pybvh", "version": peer, "work": "read + node velocities + accelerations + angular velocities",
-                 "ratio_peer_over_read_plus_analyse": ratio},
+        "stages": rows,
+        "peer": {"name": "pybvh", "version": peer, "ratio_peer_over_read_plus_analyse": ratio,
+                 "work": "read + node velocities + accelerations + angular velocities"},
         "machine": {"python": platform.python_version(), "processor": platform.processor() or platform.machine()},
     }, indent=1) + "\n")
     print(f"wrote {out}")

@@ -39,8 +39,9 @@ def expected_runs(values: np.ndarray, bad: np.ndarray, worst) -> list[tuple[int,
 def test_angle_and_speed_violations_are_the_runs_computed_by_hand():
     limits = {"joints": {"elbow": {"z": [-40, 50], "max_angular_speed": 300}}}
     found = check_motion(swinging_arm(), limits, filter=FilterSpec("none"))
-    over = [(v.first_frame, v.last_frame, v.value) for v in found if v.quantity.startswith("angle") and v.bound == "max"]
-    under = [(v.first_frame, v.last_frame, v.value) for v in found if v.quantity.startswith("angle") and v.bound == "min"]
+    angles = [v for v in found if v.quantity.startswith("angle")]
+    over = [(v.first_frame, v.last_frame, v.value) for v in angles if v.bound == "max"]
+    under = [(v.first_frame, v.last_frame, v.value) for v in angles if v.bound == "min"]
     fast = [(v.first_frame, v.last_frame, v.value) for v in found if v.quantity == "angular_speed"]
     assert over == [(a, b, pytest.approx(w, abs=1e-3)) for a, b, w in expected_runs(ANGLE, ANGLE > 50, np.max)]
     assert under == [(a, b, pytest.approx(w, abs=1e-3)) for a, b, w in expected_runs(ANGLE, ANGLE < -40, np.min)]
