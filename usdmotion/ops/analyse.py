@@ -317,9 +317,8 @@ def analyse(motion: Motion, filter: FilterSpec = FilterSpec(), euler_order: str 
         raise InputError(source, f"--mass must be a positive number of kilograms, got {mass}")
     fps = motion.fps
     filter.check(fps)
-    scale = motion.meters_per_unit if si else 1.0
     world_q, world_p = world_rotations_positions(motion)
-    positions = world_p * scale
+    positions = world_p * (motion.meters_per_unit if si else 1.0)
     n_frames, n_joints = positions.shape[:2]
     rot = np.flatnonzero(~np.asarray(motion.end_sites))  # end sites have no rotation of their own
     # every signal as one (channels, frames) array, time last: positions and local quaternions
@@ -329,24 +328,9 @@ def analyse(motion: Motion, filter: FilterSpec = FilterSpec(), euler_order: str 
     ])
     smooth, d1, d2 = smooth_derivatives(stacked, fps, filter, axis=-1)
     n_pos = 3 * n_joints
+    rates = _rates(smooth[n_pos:], d1[n_pos:], d2[n_pos:], world_q, rot, motion.parents)
 
-    def quats(a: np.ndarray) -> np.ndarray:  # (4, R, F) component-first
-        return np.moveaxis(a[n_pos:].reshape(len(rot), 4, n_frames), 1, 0)
-
-    def all_joints(a: np.ndarray) -> np.ndarray:  # (3, R, F) -> (3, J, F), zero for end sites
-        out = np.zeros((3, n_joints, n_frames))
-        out[:, rot] = a
-        return out
-
-    # component-first (3, J, F) while computing; the Kinematics fields are (F, J, 3) views
-    omega_rel, alpha_rel = (all_joints(a) for a in angular_rates(quats(smooth), quats(d1), quats(d2), body=True))
-    world_cf = np.ascontiguousarray(np.moveaxis(world_q, (0, 1, 2), (2, 1, 0)))  # (4, J, F)
-    omega, alpha = world_rates(world_cf, omega_rel, alpha_rel, motion.parents)
-
-    def frames_first(a: np.ndarray) -> np.ndarray:  # (3, J, F) -> (F, J, 3) degrees, a view
-        return np.moveaxis(np.degrees(a, out=a), (0, 1, 2), (2, 1, 0))
-
-    def per_joint(a: np.ndarray) -> np.ndarray:  # (3J, F) -> (F, J, 3)
+    def per_joint(a: np.ndarray) -> np.ndarray:  # (3J, F) -> (F, J, 3), a view
         return np.moveaxis(a[:n_pos].reshape(n_joints, 3, n_frames), -1, 0)
 
     euler, orders = euler_angles(motion, euler_order)
@@ -355,13 +339,39 @@ def analyse(motion: Motion, filter: FilterSpec = FilterSpec(), euler_order: str 
         length_unit="m" if si else "file units", meters_per_unit=motion.meters_per_unit, up_axis=motion.up_axis,
         filter=filter, time=(first_frame + np.arange(n_frames)) / fps,
         positions=positions, velocities=per_joint(d1), accelerations=per_joint(d2), orientations=world_q,
-        euler=euler, euler_orders=orders, bend=bend_angles(positions, bend_triples(motion), n_joints),
-        omega=frames_first(omega), alpha=frames_first(alpha), omega_rel=frames_first(omega_rel),
-        alpha_rel=frames_first(alpha_rel),
-    )
+        euler=euler, euler_orders=orders, bend=bend_angles(positions, bend_triples(motion), n_joints), **rates)
     if body is not None:
         kin = _with_com(kin, body, mass, motion.meters_per_unit if not si else 1.0)
     return kin
+
+
+def _rates(quat: np.ndarray, quat_dot: np.ndarray, quat_ddot: np.ndarray, world_q: np.ndarray, rot: np.ndarray,
+           parents: np.ndarray) -> dict[str, np.ndarray]:
+    """Relative and world angular velocity/acceleration, deg/s and deg/s², ``(F, J, 3)``.
+
+    ``quat*``: the filtered local quaternions of the rotating joints ``rot`` and their
+    derivatives, ``(4R, F)`` (joint-major, time last).
+    """
+    n_frames, n_joints = world_q.shape[:2]
+
+    def component_first(a: np.ndarray) -> np.ndarray:  # (4R, F) -> (4, R, F)
+        return np.moveaxis(a.reshape(len(rot), 4, n_frames), 1, 0)
+
+    def all_joints(a: np.ndarray) -> np.ndarray:  # (3, R, F) -> (3, J, F), zero for end sites
+        out = np.zeros((3, n_joints, n_frames))
+        out[:, rot] = a
+        return out
+
+    omega_rel, alpha_rel = (all_joints(a) for a in angular_rates(
+        component_first(quat), component_first(quat_dot), component_first(quat_ddot), body=True))
+    world_cf = np.ascontiguousarray(np.moveaxis(world_q, (0, 1, 2), (2, 1, 0)))  # (4, J, F)
+    omega, alpha = world_rates(world_cf, omega_rel, alpha_rel, parents)
+
+    def frames_first(a: np.ndarray) -> np.ndarray:  # (3, J, F) -> (F, J, 3) degrees, a view
+        return np.moveaxis(np.degrees(a, out=a), (0, 1, 2), (2, 1, 0))
+
+    return {"omega": frames_first(omega), "alpha": frames_first(alpha), "omega_rel": frames_first(omega_rel),
+            "alpha_rel": frames_first(alpha_rel)}
 
 
 def _with_com(kin: Kinematics, body: BodyModel, mass: float | None, to_metres: float) -> Kinematics:
