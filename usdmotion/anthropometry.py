@@ -69,7 +69,7 @@ _PRESETS: dict[str, dict[str, str]] = {
     "cgspeed-max": {"head_top": "Head_End", "neck": "lowerneck", "shoulder": "{S}Shoulder", "elbow": "{S}Elbow",
                     "wrist": "{S}Wrist", "hand_tip": "{X}Fingers_End", "hip": "{S}Hip", "knee": "{S}Knee",
                     "ankle": "{S}Ankle", "toe_tip": "{S}Toe_End"},
-    "daz": {"head_top": "head", "neck": "neck", "shoulder": "{s}Shldr", "elbow": "{s}ForeArm", "wrist": "{s}Hand",
+    "daz": {"head_top": "leftEye_End", "neck": "neck", "shoulder": "{s}Shldr", "elbow": "{s}ForeArm", "wrist": "{s}Hand",
             "hand_tip": "{s}Mid2_End", "hip": "{s}Thigh", "knee": "{s}Shin", "ankle": "{s}Foot",
             "toe_tip": "{s}Foot_End"},
     "bandai": {"head_top": "Head_End", "neck": "Neck", "shoulder": "UpperArm_{X}", "elbow": "LowerArm_{X}",
