@@ -187,10 +187,21 @@ def _usd_world_positions(path):
     return np.array(positions), np.array(rotations), UsdGeom.GetStageMetersPerUnit(stage)
 
 
-def test_real_walk_matches_finite_differences_of_usd_core_positions(walk, tmp_path):
-    """BVH → USD, positions from usd-core, derivatives by an independent five-point formula."""
-    _, motion = walk
-    usd = write_motion(motion, tmp_path / "walk.usdc")
+# (file, units, frames to skip, omega tolerance: 99th percentile and max, fraction of the peak).
+# Measured: CMU 0.06 % / 1.0 % (max at a 15-degree one-frame jump of CMU's toe); Rokoko (100 fps)
+# 0.34 % / 1.5 %; Bandai at 30 fps turns up to 46 degrees per frame, where the log-map formula and
+# the quaternion stencil part ways: 1.5 % / 11 %.
+REAL = [("cmu/cgspeed_12_01_walk.bvh", "asf", 1, 0.002, 0.02),
+        ("other_rigs/ad_rokoko_jesse_dance.bvh", "cm", 0, 0.006, 0.03),
+        ("bandai1/dataset-1_kick_normal_001.bvh", "cm", 0, 0.03, 0.15)]
+
+
+@pytest.mark.parametrize("relative, units, skip, tol99, tolmax", REAL)
+def test_real_files_match_finite_differences_of_usd_core_positions(shared_file, tmp_path, relative, units, skip,
+                                                                    tol99, tolmax):
+    """BVH → USD, world transforms from usd-core, derivatives by independent five-point formulas."""
+    motion = slice_frames(read_motion(shared_file(relative), units=units), skip)
+    usd = write_motion(motion, tmp_path / "motion.usdc")
     pos, rot, mpu = _usd_world_positions(usd)
     pos = pos * mpu
     kin = analyse(motion, FilterSpec("none"))
@@ -201,6 +212,7 @@ def test_real_walk_matches_finite_differences_of_usd_core_positions(walk, tmp_pa
     # float32 rounding (~1e-7 m) amplified by the stencils: 1e-7 * 1.5/h and 1e-7 * 5/h^2
     assert np.max(np.abs(kin.velocities[2:-2] - d1)) < 2e-3
     assert np.max(np.abs(kin.accelerations[2:-2] - d2)) < 0.2
+    assert np.max(np.abs(d1)) > 1.0 and np.max(np.abs(d2)) > 10.0  # the motions do move
     # segment angular velocity from usd-core's world rotations by a five-point formula on the log
     # map, phi(k) = log(R(t+kh) R(t-kh)^T): omega = (8 phi(1) - phi(2)) / 12h (O(h^4), like ours)
     def phi(later, earlier):
@@ -210,9 +222,7 @@ def test_real_walk_matches_finite_differences_of_usd_core_positions(walk, tmp_pa
     omega = np.degrees((8 * phi(rot[3:-1], rot[1:-3]) - phi(rot[4:], rot[:-4])) / (12 * h))
     err = np.linalg.norm(kin.omega[2:-2] - omega, axis=-1)
     peak = np.max(np.linalg.norm(omega, axis=-1))
-    # measured: median 0.03 deg/s, 99th percentile 1 deg/s of a 1560 deg/s peak; the largest
-    # difference (16 deg/s) is where CMU's toe jumps 15 degrees in one frame (1/120 s)
-    assert np.percentile(err, 99) < 0.002 * peak and np.max(err) < 0.02 * peak
+    assert np.percentile(err, 99) < tol99 * peak and np.max(err) < tolmax * peak
 
 
 def test_real_walk_agrees_with_pybvh(walk):
