@@ -7,6 +7,8 @@ of the zero-lag Butterworth filter on signals well inside its pass band.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -164,12 +166,15 @@ def test_nan_in_motion_is_a_one_line_input_error():
 # ------------------------------------------------------------------ real files
 
 
-@pytest.fixture(scope="module")
-def walk(request):
-    from tests.conftest import shared_path
+@functools.lru_cache(maxsize=None)
+def _read_walk(path: str):
+    return slice_frames(read_motion(path, units="asf"), 1)  # frame 0 is cgspeed's T-pose
 
-    path = shared_path("cmu/cgspeed_12_01_walk.bvh")
-    return path, slice_frames(read_motion(path, units="asf"), 1)  # frame 0 is cgspeed's T-pose
+
+@pytest.fixture
+def walk(shared_file):
+    path = shared_file("cmu/cgspeed_12_01_walk.bvh")
+    return path, _read_walk(str(path))
 
 
 def _usd_world_positions(path):
