@@ -1,0 +1,43 @@
+"""``usdmotion check IN --limits limits.json``: report every range-of-motion or speed violation."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from usdmotion.cli._analysis import Cutoff, FileUnits, Filter, FilterChoice, Frames, MotionInput, prepare
+from usdmotion.cli._options import Json, Lenient, RootOffset, RootOffsetChoice, UpAxis, Units
+from usdmotion.cli.app import app
+
+
+@app.command()
+def check(
+    source: MotionInput,
+    limits: Annotated[Path, typer.Option("--limits", "-l", help="Limits document (JSON/YAML, "
+                                         "schemas/limits.schema.json).", show_default=False)],
+    frames: Frames = None,
+    filter: Filter = FilterChoice.butter,
+    cutoff: Cutoff = 6.0,
+    file_units: FileUnits = False,
+    units: Units = None, up_axis: UpAxis = None, root_offset: RootOffset = RootOffsetChoice.auto,
+    lenient: Lenient = False, as_json: Json = False,
+) -> None:
+    """Check joint ranges of motion and speeds against limits; exit code 1 if any is violated."""
+    from usdmotion.check import check_motion, load_limits
+    from usdmotion.cli._analysis_report import print_violations
+    from usdmotion.ops.smoothing import FilterSpec
+
+    rules = load_limits(limits)
+    motion, first = prepare(source, units, up_axis, root_offset, lenient, frames)
+    found = check_motion(motion, rules, str(limits), filter=FilterSpec(filter.value, cutoff), si=not file_units,
+                         first_frame=first)
+    if as_json:
+        typer.echo(json.dumps({"file": str(source), "limits": str(limits), "violations": [v.as_dict() for v in found]},
+                              indent=1))
+    else:
+        print_violations(found, source.name)
+    if found:
+        raise typer.Exit(1)
