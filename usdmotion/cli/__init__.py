@@ -17,6 +17,13 @@ import warnings
 from usdmotion.cli.app import app
 
 _COMMAND_ORDER = ("convert", "info", "positions")
+#: Help panels by command module (``usdmotion --help`` groups commands by what they are for).
+_PANELS = {
+    "convert": "Convert and inspect", "info": "Convert and inspect", "positions": "Convert and inspect",
+    "retarget": "Retarget", "render": "Render",
+    "analyze": "Biomechanics", "check": "Biomechanics", "synth": "Biomechanics",
+    "segment": "Segment", "segment_eval": "Segment",
+}
 
 
 def _load_commands() -> None:
@@ -24,6 +31,10 @@ def _load_commands() -> None:
     names.sort(key=lambda n: (_COMMAND_ORDER.index(n) if n in _COMMAND_ORDER else len(_COMMAND_ORDER), n))
     for name in names:
         importlib.import_module(f"{__name__}.{name}")
+    for info in app.registered_commands:
+        module = info.callback.__module__.rsplit(".", 1)[-1] if info.callback else ""
+        if not isinstance(info.rich_help_panel, str):  # typer's unset default is a placeholder
+            info.rich_help_panel = _PANELS.get(module, "Edit")
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
