@@ -15,7 +15,7 @@ from functools import lru_cache
 import numpy as np
 
 from usdmotion.motion import Motion
-from usdmotion.rotations import array_namespace, quat_mul, quat_rotate, quat_to_matrix
+from usdmotion.rotations import array_namespace, quat_to_matrix
 
 
 @lru_cache(maxsize=256)
@@ -43,6 +43,28 @@ def depth_levels(parents: np.ndarray) -> tuple[tuple[np.ndarray, np.ndarray], ..
     return _levels_cached(tuple(int(p) for p in np.asarray(parents)))
 
 
+def _qmul_planes(a, b):
+    """Hamilton product of component-first quaternions (tuples of 4 arrays)."""
+    aw, ax, ay, az = a
+    bw, bx, by, bz = b
+    return (aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw)
+
+
+def _qrot_planes(q, v):
+    """Rotate component-first vectors ``v`` (3 arrays) by quaternions ``q`` (4 arrays)."""
+    w, x, y, z = q
+    vx, vy, vz = v
+    tx = 2.0 * (y * vz - z * vy)
+    ty = 2.0 * (z * vx - x * vz)
+    tz = 2.0 * (x * vy - y * vx)
+    return (vx + w * tx + (y * tz - z * ty),
+            vy + w * ty + (z * tx - x * tz),
+            vz + w * tz + (x * ty - y * tx))
+
+
 def fk_arrays(local_rotations, local_translations, parents: np.ndarray):
     """World rotations and positions from local ones.
 
@@ -54,24 +76,32 @@ def fk_arrays(local_rotations, local_translations, parents: np.ndarray):
     Returns:
         ``(world_rotations (..., J, 4), world_positions (..., J, 3))``, same array kind
         as the inputs (NumPy or JAX).
+
+    Works on per-component planes ``(..., J)`` internally (w, x, y, z as separate arrays),
+    one vectorised step per depth level.
     """
     xp = array_namespace(local_rotations, local_translations)
     levels = depth_levels(parents)
+    q_local = xp.moveaxis(xp.asarray(local_rotations), -1, 0)  # strided views: a copy costs more than it saves
+    t_local = xp.moveaxis(xp.asarray(local_translations), -1, 0)
     root_idx = levels[0][0]
-    q_prev = local_rotations[..., root_idx, :]
-    p_prev = local_translations[..., root_idx, :]
+    q_prev = tuple(c[..., root_idx] for c in q_local)
+    p_prev = tuple(c[..., root_idx] for c in t_local)
     q_parts, p_parts, order = [q_prev], [p_prev], [root_idx]
     for idx, parent_pos in levels[1:]:
-        q_parent = q_prev[..., parent_pos, :]
-        p_parent = p_prev[..., parent_pos, :]
-        q_prev = quat_mul(q_parent, local_rotations[..., idx, :])
-        p_prev = p_parent + quat_rotate(q_parent, local_translations[..., idx, :])
+        q_parent = tuple(c[..., parent_pos] for c in q_prev)
+        p_parent = tuple(c[..., parent_pos] for c in p_prev)
+        q_prev = _qmul_planes(q_parent, tuple(c[..., idx] for c in q_local))
+        offset = _qrot_planes(q_parent, tuple(c[..., idx] for c in t_local))
+        p_prev = tuple(a + b for a, b in zip(p_parent, offset))
         q_parts.append(q_prev)
         p_parts.append(p_prev)
         order.append(idx)
     inverse = np.argsort(np.concatenate(order))
-    world_q = xp.concatenate(q_parts, axis=-2)[..., inverse, :]
-    world_p = xp.concatenate(p_parts, axis=-2)[..., inverse, :]
+    world_q = xp.stack([xp.concatenate([part[k] for part in q_parts], axis=-1)[..., inverse] for k in range(4)],
+                       axis=-1)
+    world_p = xp.stack([xp.concatenate([part[k] for part in p_parts], axis=-1)[..., inverse] for k in range(3)],
+                       axis=-1)
     return world_q, world_p
 
 
