@@ -348,6 +348,49 @@ def margins(t: Take, cuts: np.ndarray) -> list[dict]:
     return out
 
 
+def best_single_split(x: np.ndarray, gamma: float) -> int:
+    """Index of the split of ``x`` into two parts that minimises the summed Gaussian-kernel cost."""
+    k = np.exp(-gamma * np.sum((x[:, None] - x[None]) ** 2, axis=-1))
+    cs = k.cumsum(0).cumsum(1)
+    n = x.shape[0]
+    t = np.arange(2, n - 2)
+    inner = cs[t - 1, t - 1]
+    outer = cs[n - 1, n - 1] - cs[t - 1, n - 1] - cs[n - 1, t - 1] + inner
+    return int(t[np.argmax(inner / t + outer / (n - t))])
+
+
+def miss_diagnostics(t: Take) -> dict:
+    """Why 86_01's walk → leg-kick cut lands at 3288 (label 3199, band 3149–3249): where the single
+    best split of the frames between the neighbouring cuts lies for several features and kernel
+    widths, how active the stance before the kick is, and whether its frames look like walking."""
+    lo, hi, stance = 2484, 4080, (3149, 3288)
+    feats = {"angles + 0.25 s × speeds (shipped)": np.concatenate([t.angles, 0.25 * t.speed], 1),
+             "angles + 1 s × speeds": np.concatenate([t.angles, t.speed], 1),
+             "angles + 2 s × speeds": np.concatenate([t.angles, 2 * t.speed], 1),
+             "angular speeds only": t.speed, "limb-joint speeds only": t.body[:, :8], "angles only": t.angles,
+             "log(0.05 + activity) only": np.log(0.05 + t.activity)[:, None]}
+    splits = {}
+    for name, f in feats.items():
+        x, pool = pooled(f, t.fps, S.KCPD_RATE_HZ)
+        g = S.median_gamma(x)
+        seg = x[lo // pool: hi // pool]
+        splits[name] = {f"{m:g}x": (lo // pool + best_single_split(seg, m * g)) * pool for m in (0.5, 1, 2, 4)}
+    act = {"walk (2610-3148)": float(np.median(t.activity[2610:3149])),
+           "stance (3149-3287)": float(np.median(t.activity[slice(*stance)])),
+           "stance, range": [float(t.activity[slice(*stance)].min()), float(t.activity[slice(*stance)].max())],
+           "kick (3288-4013)": float(np.median(t.activity[3288:4014]))}
+    # Typicality: mean kernel similarity of a 10 Hz sample to the walk's samples (2610-3148),
+    # against the 5 % quantile of the walk samples' own (leave-one-out) typicality.
+    x, pool = pooled(feats["angles + 0.25 s × speeds (shipped)"], t.fps, S.KCPD_RATE_HZ)
+    g = S.median_gamma(x)
+    walk, st = x[2610 // pool: 3149 // pool], x[stance[0] // pool: stance[1] // pool]
+    kw = np.exp(-g * np.sum((walk[:, None] - walk[None]) ** 2, -1))
+    own = (kw.sum(1) - 1) / (len(walk) - 1)
+    typ = np.exp(-g * np.sum((st[:, None] - walk[None]) ** 2, -1)).mean(1)
+    return {"best_single_split": splits, "activity_rad_s": act,
+            "stance_samples_typical_of_walk": f"{int((typ >= np.quantile(own, 0.05)).sum())}/{len(st)}"}
+
+
 def fmt(s: dict) -> str:
     return f"{s['hits']:>2}/{s['labelled']:<2} of {s['detected']:>3} {s['precision']:6.1%} {s['recall']:6.1%}"
 
@@ -388,6 +431,17 @@ def main() -> int:
     print("\nkcpd hits, frames inside the valid region's nearer edge:",
           {n: [m["inside_by_frames"] for m in ms] for n, ms in shipped.items()})
     results["kcpd_hit_margins"] = shipped
+    diag = miss_diagnostics(labelled[0])
+    print("\n86_01 walk → leg kick (label 3199, band 3149-3249, kcpd 3288): best single split of 2484-4080 by "
+          "feature and kernel width (× median heuristic)")
+    for name, by_width in diag["best_single_split"].items():
+        print(f"  {name:<36} " + "  ".join(f"{w}: {f}" for w, f in by_width.items()))
+    rounded = {k: (round(v, 2) if isinstance(v, float) else [round(x, 2) for x in v])
+               for k, v in diag["activity_rad_s"].items()}
+    print("  mean bone angular speed (rad/s, 0.25 s average), medians:", rounded)
+    print("  stance samples (10 Hz) as typical of the walk as 95 % of the walk's own:",
+          diag["stance_samples_typical_of_walk"])
+    results["miss_diagnostics"] = diag
     out = REPO / "benchmarks" / "results" / "segment_experiments.json"
     out.write_text(json.dumps(results, indent=2, default=float) + "\n")
     print(f"wrote {out.relative_to(REPO)}")
