@@ -22,6 +22,9 @@ to recover its one miss (the 86_01 walk → leg-kick cut), scored with one proto
   the localisation that a snapping rule can silently degrade.
 
 Scoring is ``usdmotion.ops.segment_eval.score_cuts`` at 0.5 s (the stated rule, unchanged).
+After the table: how far inside its valid region each kcpd hit lies, and diagnostics of the
+86_01 miss (best single split by feature and kernel width, activity levels, typicality of the
+stance before the kick under the walk's distribution).
 """
 
 from __future__ import annotations
