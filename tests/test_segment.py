@@ -11,7 +11,7 @@ from usdmotion.kinematics import joint_positions
 from usdmotion.motion import Motion
 from usdmotion.ops import roles as R
 from usdmotion.ops import segment as S
-from usdmotion.ops.segment_eval import Labels, load_labels, score_cuts, synthetic_take
+from usdmotion.ops.segment_eval import Labels, activity_ranges, load_labels, reordered_take, score_cuts, synthetic_take
 from usdmotion.rotations import axis_angle_quat
 
 # A tiny humanoid: limbs hang along -Y, the spine points +Y, so every bone angle is π at rest.
@@ -297,6 +297,50 @@ def test_bandai_take_at_30_fps(shared_file):
     assert bounds[0, 0] == 0 and bounds[-1, 1] == take.n_frames - 1
     np.testing.assert_array_equal(bounds[1:, 0], bounds[:-1, 1] + 1)
     assert [seg.segment_at(int(f)) for f in bounds[:, 0]] == list(range(len(bounds)))
+
+
+def test_activity_ranges_match_the_csv_action_columns(shared_file):
+    """Ranges from the JSON bands vs the CSV's own action columns (1-based, inclusive, sharing the
+    band's edge frames, which the ranges leave out)."""
+    import csv
+
+    labels = load_labels(shared_file("cmu86/groundtruth86.json"))
+    with open(shared_file("cmu86/86_01_segments.csv"), newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    first = np.array([int(r["action_start_frame"]) for r in rows]) - 1
+    last = np.array([int(r["action_end_frame"]) for r in rows]) - 1
+    first[1:] += 1
+    last[:-1] -= 1
+    ranges = activity_ranges(labels, 4579)
+    np.testing.assert_array_equal(ranges, np.stack([first, last], 1))
+    widened = activity_ranges(labels, 4579, 60)
+    np.testing.assert_array_equal(widened[1:, 0], ranges[1:, 0] + 60)
+    np.testing.assert_array_equal(widened[:-1, 1], ranges[:-1, 1] - 60)
+    assert widened[0, 0] == 0 and widened[-1, 1] == 4578
+    with pytest.raises(ValueError, match="empty"):
+        activity_ranges(labels, 4579, 300)
+
+
+def test_reordered_take_keeps_each_activity():
+    """Frame f of the source has its left shoulder turned by f·0.001 rad about Z, so every frame of the
+    new take says which source frame it came from."""
+    n = 400
+    q = identity(n)
+    q[:, 2] = axis_angle_quat("Z", 0.001 * np.arange(n))
+    m = tiny_motion(q)
+    labels = Labels(cuts=np.array([100, 250]), bands=np.array([[90, 110], [240, 260]]))
+    take, new = reordered_take(m, labels, [2, 0, 1], margin_frames=5, blend_s=0.5)
+    source = np.rint(2 * np.arctan2(take.rotations[:, 2, 3], take.rotations[:, 2, 0]) / 0.001).astype(int)
+    nb = 15  # 0.5 s at 30 fps
+    expected_frames = np.concatenate([np.arange(266, 400), np.arange(0, 85), np.arange(116, 235)])
+    real = np.ones(take.n_frames, bool)
+    for a, _ in new.bands:
+        real[a:a + nb] = False
+    np.testing.assert_array_equal(source[real], expected_frames)
+    np.testing.assert_array_equal(new.bands[:, 0], [134, 134 + nb + 85])
+    np.testing.assert_array_equal(new.cuts, new.bands[:, 0] + nb // 2)
+    with pytest.raises(ValueError, match="order"):
+        reordered_take(m, labels, [0, 3])
 
 
 def test_too_short_motion_is_refused():

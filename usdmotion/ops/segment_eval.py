@@ -219,3 +219,40 @@ def synthetic_take(motions: list, blend_s: float = 0.5, source: str | None = Non
     take = first.with_frames(np.concatenate(rot), np.concatenate(root),
                              None if first.joint_translations is None else np.concatenate(jt))
     return take, _labels(cuts, bands, source)
+
+
+def activity_ranges(labels: Labels, n_frames: int, margin_frames: int = 0) -> np.ndarray:
+    """``(K + 1, 2)`` inclusive frame ranges of the labelled activities: the frames between
+    consecutive transition bands, each band widened by ``margin_frames`` on both sides.
+
+    Raises:
+        ValueError: a range would be empty (bands overlap, or the margin is too wide).
+    """
+    starts = np.concatenate([[0], labels.bands[:, 1] + 1 + margin_frames]).astype(np.int64)
+    ends = np.concatenate([labels.bands[:, 0] - 1 - margin_frames, [n_frames - 1]]).astype(np.int64)
+    if np.any(ends < starts) or starts[-1] > n_frames - 1 or ends[0] < 0:
+        raise ValueError(f"an activity between the labelled transitions is empty with a margin of {margin_frames} "
+                         "frames")
+    return np.stack([starts, ends], axis=1)
+
+
+def reordered_take(motion, labels: Labels, order, margin_frames: int = 0, blend_s: float = 0.5,
+                   source: str | None = None):
+    """``motion``'s labelled activities (:func:`activity_ranges`) re-joined in ``order`` by
+    :func:`synthetic_take`: a take of real activities whose junctions are known exactly.
+
+    Args:
+        order: indices into the activities, e.g. ``[2, 0, 1]``; an activity may be left out or repeated.
+        margin_frames: frames dropped beside each labelled transition band, so the natural
+            transitions (whose cut is a matter of convention) are not in the new take.
+
+    Returns:
+        ``(take, labels)`` as :func:`synthetic_take`.
+    """
+    from usdmotion.ops.segment import clip
+
+    ranges = activity_ranges(labels, motion.n_frames, margin_frames)
+    order = [int(i) for i in order]
+    if len(order) < 2 or not all(0 <= i < len(ranges) for i in order):
+        raise ValueError(f"order needs at least two indices within 0..{len(ranges) - 1}, got {order}")
+    return synthetic_take([clip(motion, *(int(v) for v in ranges[i])) for i in order], blend_s=blend_s, source=source)
