@@ -55,7 +55,11 @@ def joint_depths(parents: np.ndarray) -> np.ndarray:
 
 
 def _frozen(a, dtype, shape_tail: tuple[int, ...], name: str) -> np.ndarray:
-    a = np.array(a, dtype=dtype, copy=True)
+    """A read-only array of ``dtype``. An array that is already read-only and owns its data
+    (e.g. another Motion's) is shared, not copied: nothing can change it."""
+    shareable = (isinstance(a, np.ndarray) and a.dtype == dtype and not a.flags.writeable
+                 and a.base is None)
+    a = a if shareable else np.array(a, dtype=dtype, copy=True)
     if a.shape[a.ndim - len(shape_tail):] != shape_tail or a.ndim < len(shape_tail):
         raise ValueError(f"{name} must have shape (..., {', '.join(map(str, shape_tail))}), got {a.shape}")
     a.setflags(write=False)
@@ -90,6 +94,10 @@ class Motion:
             (Blender, bvhio, pybvh).
         source_channels: ``(F, C)`` the channel values as read (degrees, file units), or
             ``None``. Only a hint for choosing among equivalent Euler triples on write.
+
+    Arrays passed in are copied into read-only arrays, except arrays that are already
+    read-only and own their data (another Motion's, or ones a reader hands over): those
+    are shared, so ``dataclasses.replace`` does not copy unchanged frames.
     """
 
     joint_names: tuple[str, ...]

@@ -141,21 +141,30 @@ def euler_to_quat(angles, order: str):
     """Quaternions ``(..., 4)`` of intrinsic Euler ``angles (..., 3)`` in radians.
 
     ``order="ZXY"`` means ``R = Rz(angles[..., 0]) @ Rx(angles[..., 1]) @ Ry(angles[..., 2])``.
-    Closed form of ``(c1 + s1 e_i)(c2 + s2 e_j)(c3 + s3 e_k)`` with ``e_i e_j = σ e_k``.
+    """
+    xp = array_namespace(angles)
+    half = 0.5 * xp.moveaxis(angles, -1, 0)
+    return half_angles_to_quat(half[0], half[1], half[2], order)
+
+
+def half_angles_to_quat(h1, h2, h3, order: str):
+    """Quaternions ``(..., 4)`` from the three *half* Euler angles as separate arrays ``(...)``.
+
+    Closed form of ``(c1 + s1 e_i)(c2 + s2 e_j)(c3 + s3 e_k)`` with ``e_i e_j = σ e_k``; the
+    plane-per-axis inputs let callers (the BVH reader) skip a transpose.
     """
     order = check_euler_order(order)
-    xp = array_namespace(angles)
+    xp = array_namespace(h1, h2, h3)
     i, j, k = (AXES.index(a) for a in order)
     sigma = 1.0 if (j - i) % 3 == 1 else -1.0
-    half = 0.5 * xp.moveaxis(angles, -1, 0)  # (3, ...): contiguous per-axis planes
-    c, s = xp.cos(half), xp.sin(half)
-    c1, c2, c3 = c[0], c[1], c[2]
-    s1, s2, s3 = s[0], s[1], s[2]
+    c1, c2, c3 = xp.cos(h1), xp.cos(h2), xp.cos(h3)
+    s1, s2, s3 = xp.sin(h1), xp.sin(h2), xp.sin(h3)
+    c1c2, s1s2, c1s2, s1c2 = c1 * c2, s1 * s2, c1 * s2, s1 * c2
     parts = [None, None, None, None]
-    parts[0] = c1 * c2 * c3 - sigma * (s1 * s2 * s3)
-    parts[1 + i] = s1 * c2 * c3 + sigma * (c1 * s2 * s3)
-    parts[1 + j] = c1 * s2 * c3 - sigma * (s1 * c2 * s3)
-    parts[1 + k] = c1 * c2 * s3 + sigma * (s1 * s2 * c3)
+    parts[0] = c1c2 * c3 - sigma * (s1s2 * s3)
+    parts[1 + i] = s1c2 * c3 + sigma * (c1s2 * s3)
+    parts[1 + j] = c1s2 * c3 - sigma * (s1c2 * s3)
+    parts[1 + k] = c1c2 * s3 + sigma * (s1s2 * c3)
     return xp.stack(parts, axis=-1)
 
 

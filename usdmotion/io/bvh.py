@@ -34,7 +34,7 @@ from usdmotion.io.atomic import atomic_output
 from usdmotion.io.bvh_header import BvhHeader, frame_rate, header_arrays, parse_header
 from usdmotion.io.bvh_rows import line_of_row, parse_rows
 from usdmotion.motion import POSITION_CHANNELS, ROTATION_CHANNELS, Motion, RootOffset
-from usdmotion.rotations import euler_to_quat, quat_to_euler
+from usdmotion.rotations import half_angles_to_quat, quat_to_euler
 
 DEFAULT_ROOT_CHANNELS = ("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation")
 DEFAULT_JOINT_CHANNELS = ("Zrotation", "Xrotation", "Yrotation")
@@ -94,7 +94,7 @@ _FRAME_TIME_LINE = re.compile(rb"^\s*frame\s*time", re.IGNORECASE)
 def _split_header(raw: bytes, path: str | None) -> tuple[bytes, bytes]:
     """``(header bytes, motion-row bytes)``: rows start after the ``Frames:`` and
     ``Frame Time:`` lines (either order, blank lines allowed) that follow ``MOTION``."""
-    if not raw.strip():
+    if not raw or raw.isspace():  # no copy of a large buffer
         raise BvhParseError(path, "empty file", 1)
     motion = _MOTION_LINE.search(raw)
     if motion is None:
@@ -224,8 +224,6 @@ def rotations_from_channels(values: np.ndarray, channels: tuple[tuple[str, ...],
     Joints sharing an Euler order are converted together (at most six groups).
     """
     n_frames, n_joints = values.shape[0], len(channels)
-    padded = np.concatenate([values, np.zeros((n_frames, 1))], axis=1)
-    zero_col = values.shape[1]
     columns = _channel_columns(channels)
     rotations = np.zeros((n_frames, n_joints, 4))
     rotations[..., 0] = 1.0
@@ -233,10 +231,18 @@ def rotations_from_channels(values: np.ndarray, channels: tuple[tuple[str, ...],
     for j, names in enumerate(channels):
         if any(n in ROTATION_CHANNELS for n in names):
             groups.setdefault(rotation_order(names), []).append(j)
+    half_per_degree = 0.5 * np.pi / 180.0
+    zeros = np.zeros((n_frames, 1))
     for order, joints in groups.items():
-        gather = np.stack([_euler_columns(columns[j], order, zero_col) for j in joints])  # (G, 3)
-        angles = np.deg2rad(padded[:, gather])  # (F, G, 3)
-        rotations[:, joints] = euler_to_quat(angles, order)
+        gather = np.stack([_euler_columns(columns[j], order, -1) for j in joints])  # (G, 3), -1 = no channel
+        halves = []
+        for axis in range(3):  # contiguous (F, G) planes of half angles in radians
+            cols = gather[:, axis]
+            plane = values[:, np.maximum(cols, 0)] * half_per_degree
+            if np.any(cols < 0):
+                plane = np.where(cols[None] < 0, zeros, plane)
+            halves.append(plane)
+        rotations[:, joints] = half_angles_to_quat(*halves, order)
     return rotations
 
 
@@ -322,6 +328,9 @@ def motion_from_bvh(data: BvhData, root_offset: str = "auto", meters_per_unit: f
         joint_translations = np.broadcast_to(data.offsets, (values.shape[0],) + data.offsets.shape).copy()
         for j in moving:
             joint_translations[:, j] = _positions(values, columns[j], data.offsets[j], add=False)
+    for owned in (rotations, root_translation, joint_translations):
+        if owned is not None:
+            owned.setflags(write=False)  # handed over: Motion shares frozen arrays instead of copying
     motion = Motion(
         joint_names=data.joint_names,
         parents=data.parents,

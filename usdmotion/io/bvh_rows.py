@@ -35,7 +35,7 @@ def _arrow_parse(buf: bytes, n_channels: int) -> np.ndarray | None:
     import pyarrow as pa
     import pyarrow.csv as pcsv
 
-    if n_channels == 0 or not buf.strip():
+    if n_channels == 0 or not buf or buf.isspace():
         return None
     read = pcsv.ReadOptions(autogenerate_column_names=True, block_size=1 << 22)
     parse = pcsv.ParseOptions(delimiter=" ", quote_char=False, escape_char=False,
