@@ -1,0 +1,1 @@
+"""Operations on motions: ``Motion`` → ``Motion`` or arrays (retarget, edit, segment, analyse)."""
