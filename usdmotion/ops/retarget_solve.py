@@ -97,26 +97,119 @@ def _skew(a):
     return jnp.stack([jnp.stack([z, -w, y], -1), jnp.stack([w, z, -x], -1), jnp.stack([-y, x, z], -1)], -2)
 
 
-def _make_lm(problem: Problem, iterations: int):
-    """A jitted ``(q, t, targets) -> (q, t, loss (B,), initial loss (B,))`` LM solver."""
-    import jax
+def _pairs(problem: Problem) -> np.ndarray:
+    """``(R, R)`` index of the deeper joint of every pair of rotation joints on one line of
+    descent (the common descendants are that joint's), ``-1`` for unrelated pairs."""
+    from usdmotion.ops.hierarchy import ancestor_matrix
+
+    rot = problem.rot_joints
+    anc = ancestor_matrix(problem.parents)[np.ix_(rot, rot)] | np.eye(len(rot), dtype=bool)
+    k_below = anc  # [j, k]: rot j is an ancestor-or-self of rot k
+    idx = np.arange(len(rot))
+    return np.where(k_below, idx[None, :], np.where(k_below.T, idx[:, None], -1))
+
+
+def make_normal_equations(problem: Problem):
+    """``(world_p (B,J,3), residual (B,M,3)) -> (H (B,P,P), g (B,P))`` for LM, where
+    ``H = JᵀWJ`` and ``g = JᵀW r`` of the analytic Jacobian (see :func:`make_jacobian`),
+    built from moments of the mapped descendants of every rotation joint instead of
+    ``J`` itself: ``H_jk = tr(X) I − X`` with ``X = Σ_m w_m (p_k − p_m)(p_j − p_m)ᵀ`` over
+    the common mapped descendants ``m`` (those of the deeper of ``j``, ``k``), and
+    ``g_j = Σ_m w_m (p_m − p_j) × r_m``. The moments ``Σ w``, ``Σ w p``, ``Σ w p pᵀ``,
+    ``Σ w r``, ``Σ w p × r`` of all joints come from one matrix product with the
+    ``(M, R)`` descendant mask. Positions must be centred per frame (float32).
+    """
     import jax.numpy as jnp
 
-    parents = problem.parents
+    mapped = jnp.asarray(problem.mapped)
+    w = jnp.asarray(problem.weights, jnp.float32)
+    rot_j = jnp.asarray(problem.rot_joints)
+    rot_mask, trans_mask = _masks(problem)
+    n_rot, n_trans = len(problem.rot_joints), len(problem.trans_joints)
+    pairs = _pairs(problem)
+    deeper = jnp.asarray(np.maximum(pairs, 0))
+    related = jnp.asarray(pairs >= 0, jnp.float32)
+    # one mask for every moment: rotation joints' strict descendants, then translation subtrees
+    mask = jnp.asarray(np.concatenate([rot_mask, trans_mask], axis=1) * np.asarray(problem.weights)[:, None], jnp.float32)
+    totals = jnp.sum(mask, axis=0)  # (R + T,)
+    eye3 = jnp.eye(3, dtype=jnp.float32)
+
+    def equations(world_p, r):
+        batch = world_p.shape[0]
+        pm = world_p[:, mapped]  # (B, M, 3)
+        outer = (pm[..., :, None] * pm[..., None, :]).reshape(pm.shape[:2] + (9,))
+        feats = jnp.concatenate([pm, outer, r, jnp.cross(pm, r)], axis=-1)  # (B, M, 18)
+        n_feat = feats.shape[-1]
+        moments = (jnp.swapaxes(feats, 1, 2).reshape(batch * n_feat, -1) @ mask).reshape(batch, n_feat, -1)
+        s1, s2, rs, cr = moments[:, 0:3], moments[:, 3:12], moments[:, 12:15], moments[:, 15:18]
+        blocks_g = []
+        h = None
+        if n_rot:
+            pr = world_p[:, rot_j]  # (B, R, 3)
+            sd = jnp.swapaxes(s1[:, :, :n_rot], 1, 2)[:, deeper]  # (B, R, R, 3)
+            qd = jnp.swapaxes(s2[:, :, :n_rot], 1, 2)[:, deeper].reshape(batch, n_rot, n_rot, 3, 3)
+            wd = totals[:n_rot][deeper]
+            p_j, p_k = pr[:, :, None, :], pr[:, None, :, :]
+            x = (wd[None, :, :, None, None] * p_k[..., :, None] * p_j[..., None, :] - p_k[..., :, None] * sd[..., None, :]
+                 - sd[..., :, None] * p_j[..., None, :] + qd)
+            trace = x[..., 0, 0] + x[..., 1, 1] + x[..., 2, 2]
+            h_rr = (trace[..., None, None] * eye3 - x) * related[None, :, :, None, None]
+            h = jnp.transpose(h_rr, (0, 1, 3, 2, 4)).reshape(batch, 3 * n_rot, 3 * n_rot)
+            # g_j = Σ w (p_m − p_j) × r_m = Σ w p_m × r_m − p_j × Σ w r_m
+            g_r = jnp.swapaxes(cr[:, :, :n_rot], 1, 2) - jnp.cross(pr, jnp.swapaxes(rs[:, :, :n_rot], 1, 2))
+            blocks_g.append(g_r.reshape(batch, 3 * n_rot))
+        if n_trans:
+            h_tt = jnp.kron(jnp.asarray(trans_mask.T @ (trans_mask * np.asarray(problem.weights)[:, None])), eye3)
+            h_tt = jnp.broadcast_to(h_tt, (batch, 3 * n_trans, 3 * n_trans))
+            blocks_g.append(jnp.swapaxes(rs[:, :, n_rot:], 1, 2).reshape(batch, 3 * n_trans))
+            if n_rot:
+                # Σ_{m ∈ sub(t) ∩ desc(j)} w (p_j − p_m): the translation subtree holds every
+                # optimised joint's descendants when it holds the joint itself
+                inside = jnp.asarray(_trans_contains(problem), jnp.float32)  # (T, R)
+                a = (totals[:n_rot][None, :, None] * pr[:, None] - jnp.swapaxes(s1[:, :, :n_rot], 1, 2)[:, None])
+                h_tr = _skew(a * inside[None, :, :, None])  # (B, T, R, 3, 3)
+                h_tr = jnp.transpose(h_tr, (0, 1, 3, 2, 4)).reshape(batch, 3 * n_trans, 3 * n_rot)
+                h = jnp.concatenate([jnp.concatenate([h, jnp.swapaxes(h_tr, 1, 2)], axis=2),
+                                     jnp.concatenate([h_tr, h_tt], axis=2)], axis=1)
+            else:
+                h = h_tt
+        g = jnp.concatenate(blocks_g, axis=1) if len(blocks_g) > 1 else blocks_g[0]
+        return h, g
+
+    return equations
+
+
+def _trans_contains(problem: Problem) -> np.ndarray:
+    """``(T, R)`` bool: rotation joint inside the subtree of translation joint (itself included).
+
+    Raises ``ValueError`` when a rotation joint has descendants both inside and outside a
+    translation subtree (never for the problems :mod:`usdmotion.ops.retarget` builds).
+    """
+    from usdmotion.ops.hierarchy import ancestor_matrix
+
+    sub = ancestor_matrix(problem.parents) | np.eye(len(problem.parents), dtype=bool)
+    inside = sub[problem.trans_joints][:, problem.rot_joints]
+    rot_mask, trans_mask = _masks(problem)
+    for t in range(len(problem.trans_joints)):
+        for r in np.flatnonzero(~inside[t]):
+            if np.any(rot_mask[:, r].astype(bool) & trans_mask[:, t].astype(bool)):
+                raise ValueError("a rotation joint outside a translation subtree moves joints inside it")
+    return inside
+
+
+def make_jacobian(problem: Problem):
+    """``world_p (B,J,3) -> J (B, 3M, P)``: the analytic Jacobian of the weighted residuals
+    ``√w_m (p_m − p̂_m)`` with respect to world-frame rotation increments ``ω_j`` of the
+    rotation joints (``∂p_m/∂ω_j = [p_j − p_m]_×`` for mapped descendants ``m``) and
+    world-frame increments of the free translations (identity on their subtree)."""
+    import jax.numpy as jnp
+
     mapped = jnp.asarray(problem.mapped)
     sqrt_w = jnp.asarray(np.sqrt(problem.weights), jnp.float32)
     rot_j = jnp.asarray(problem.rot_joints)
-    trans_j = jnp.asarray(problem.trans_joints)
-    trans_parent = jnp.asarray(np.where(parents[problem.trans_joints] < 0, len(parents),
-                                        parents[problem.trans_joints]))
     rot_mask, trans_mask = (jnp.asarray(m) for m in _masks(problem))
     n_rot, n_trans, n_map = len(problem.rot_joints), len(problem.trans_joints), len(problem.mapped)
     eye3 = jnp.eye(3, dtype=jnp.float32)
-
-    def evaluate(q, t, targets):
-        world_q, world_p = fk_arrays(q, t, parents)
-        r = (world_p[:, mapped] - targets) * sqrt_w[:, None]
-        return world_q, world_p, r, jnp.sum(r * r, axis=(1, 2))
 
     def jacobian(world_p):
         batch = world_p.shape[0]
@@ -130,6 +223,35 @@ def _make_lm(problem: Problem, iterations: int):
             blocks.append(jnp.broadcast_to(jt.reshape(1, 3 * n_map, 3 * n_trans), (batch, 3 * n_map, 3 * n_trans)))
         jac = jnp.concatenate(blocks, axis=-1) if len(blocks) > 1 else blocks[0]
         return jac * jnp.repeat(sqrt_w, 3)[None, :, None]
+
+    return jacobian
+
+
+def _make_lm(problem: Problem, iterations: int):
+    """A jitted ``(q, t, targets) -> (q, t, loss (B,), initial loss (B,))`` LM solver."""
+    import jax
+    import jax.numpy as jnp
+
+    parents = problem.parents
+    mapped = jnp.asarray(problem.mapped)
+    w = jnp.asarray(problem.weights, jnp.float32)
+    rot_j = jnp.asarray(problem.rot_joints)
+    trans_j = jnp.asarray(problem.trans_joints)
+    trans_parent = jnp.asarray(np.where(parents[problem.trans_joints] < 0, len(parents),
+                                        parents[problem.trans_joints]))
+    n_rot, n_trans = len(problem.rot_joints), len(problem.trans_joints)
+    jacobian = make_jacobian(problem)
+    sqrt_w = jnp.sqrt(w)
+
+    def normal_equations(world_p, r):
+        jac = jacobian(world_p)
+        rw = (r * sqrt_w[:, None]).reshape(r.shape[0], -1)
+        return jnp.einsum("bri,brj->bij", jac, jac), jnp.einsum("bri,br->bi", jac, rw)
+
+    def evaluate(q, t, targets):
+        world_q, world_p = fk_arrays(q, t, parents)
+        r = world_p[:, mapped] - targets
+        return world_q, world_p, r, jnp.einsum("bmk,bmk,m->b", r, r, w)
 
     def apply(q, t, world_q, step):
         if n_rot:
@@ -152,9 +274,7 @@ def _make_lm(problem: Problem, iterations: int):
 
         def body(_, carry):
             q, t, world_q, world_p, r, loss, lam = carry
-            jac = jacobian(world_p)
-            h = jnp.einsum("bri,brj->bij", jac, jac)
-            g = jnp.einsum("bri,br->bi", jac, r.reshape(r.shape[0], -1))
+            h, g = normal_equations(world_p, r)
             diag = jnp.diagonal(h, axis1=1, axis2=2)
             floor = LM_DIAG_FLOOR * jnp.mean(diag, axis=1, keepdims=True) + 1e-12
             damped = h + (lam[:, None] * (diag + floor))[:, :, None] * jnp.eye(h.shape[-1], dtype=h.dtype)
@@ -258,12 +378,22 @@ class _Ref(tuple):
         return isinstance(other, _Ref)
 
 
-def chunk_size(n_frames: int, largest: int = 2048, smallest: int = 16) -> int:
-    """Frames per compiled chunk: the next power of two ≥ ``n_frames``, within bounds."""
-    size = smallest
-    while size < min(n_frames, largest):
-        size *= 2
-    return size
+def _bucket(n: int, smallest: int = 16) -> int:
+    """Smallest ``2^k · (8 + i) / 8 ≥ n`` (≤ 12.5 % padding, few distinct compiled sizes)."""
+    if n <= smallest:
+        return smallest
+    base = 1 << (int(n).bit_length() - 1)
+    return next(base * (8 + i) // 8 for i in range(9) if base * (8 + i) // 8 >= n)
+
+
+def chunk_plan(n_frames: int, problem: Problem, budget_bytes: float = 64e6) -> tuple[int, int]:
+    """``(frames per compiled call, number of calls)``: equal chunks under a memory budget
+    (Jacobian and normal matrices, float32), each padded to a :func:`_bucket` size."""
+    n_params, n_rows = max(problem.n_params, 3), 3 * len(problem.mapped)
+    per_frame = 4 * 3 * (n_rows * n_params + n_params * n_params)
+    largest = int(min(4096, max(64, budget_bytes // per_frame)))
+    calls = -(-n_frames // largest)
+    return _bucket(-(-n_frames // calls)), calls
 
 
 def solve(problem: Problem, q0: np.ndarray, t0: np.ndarray, targets: np.ndarray, method: str = "lm",
@@ -278,7 +408,7 @@ def solve(problem: Problem, q0: np.ndarray, t0: np.ndarray, targets: np.ndarray,
         targets: ``(F, M, 3)`` source positions of the mapped joints, same frame/centring.
         method: ``"lm"`` or ``"adam"``.
         iterations: LM iterations (default 10) or Adam iterations (default 500).
-        chunk: frames per compiled call (default :func:`chunk_size`).
+        chunk: frames per compiled call (default :func:`chunk_plan`).
         progress: optional ``callable(frames_done)``.
 
     Returns:
@@ -292,7 +422,7 @@ def solve(problem: Problem, q0: np.ndarray, t0: np.ndarray, targets: np.ndarray,
         raise ValueError(f"unknown method {method!r}")
     iterations = iterations if iterations is not None else (10 if method == "lm" else ADAM_ITERATIONS)
     n_frames = q0.shape[0]
-    chunk = chunk or chunk_size(n_frames)
+    chunk = chunk or chunk_plan(n_frames, problem)[0]
     fn = _compiled(problem.key(), method, int(iterations), float(lr), _Ref((problem,)))
     theta0 = None
     if method == "adam":
