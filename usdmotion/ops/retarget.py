@@ -432,13 +432,14 @@ def retarget(source: Motion, target: Motion | None = None, *, remove=(), add=(),
     t0[:, setup.anchor] -= centre
     targets = setup.targets[:, setup.mapped] - centre[:, None]
     prepared = time.perf_counter()
-    q, t, _, _ = solve(_problem(setup), q0, t0, targets, method=method, iterations=iterations, progress=progress)
-    solved = time.perf_counter()
+    solution = solve(_problem(setup), q0, t0, targets, method=method, iterations=iterations, progress=progress)
+    t = solution.t
     t[:, setup.anchor] += centre
-    motion = _output_motion(source, setup, q, t)
+    motion = _output_motion(source, setup, solution.q, t)
     report = retarget_report.build(source, setup, motion, q0, init_name, method, iterations,
-                                   {"setup": prepared - start, "solve": solved - prepared},
+                                   {"setup": prepared - start, "compile": solution.compile_s, "solve": solution.run_s},
                                    source_path, target_path)
+    report["chunks"] = {"frames_per_call": solution.chunk, "calls": solution.calls}
     report["time_s"]["total"] = time.perf_counter() - start
     return RetargetResult(motion, report)
 

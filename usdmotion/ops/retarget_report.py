@@ -24,7 +24,7 @@ def build(source: Motion, setup, motion: Motion, q0: np.ndarray, init_name: str,
           iterations: int | None, times: dict, source_path: str | None, target_path: str | None) -> dict:
     """The report of a finished retargeting (see ``docs/retarget.md``)."""
     from usdmotion.ops.retarget import frame_losses
-    from usdmotion.ops.retarget_solve import ADAM_ITERATIONS, device_description
+    from usdmotion.ops.retarget_solve import ADAM_ITERATIONS, LM_ITERATIONS, device_description
 
     rig, mapped, names = setup.rig, setup.mapped, setup.rig.joint_names
     args = (rig.parents, mapped, setup.targets, setup.weights)
@@ -51,7 +51,7 @@ def build(source: Motion, setup, motion: Motion, q0: np.ndarray, init_name: str,
         "source": source_path,
         "target": target_path if setup.mode == "target" else "derived from the source",
         "method": method,
-        "iterations": iterations if iterations is not None else (10 if method == "lm" else ADAM_ITERATIONS),
+        "iterations": iterations if iterations is not None else (LM_ITERATIONS if method == "lm" else ADAM_ITERATIONS),
         "init": init_name,
         "dtype": "float32",
         "device": device_description(),

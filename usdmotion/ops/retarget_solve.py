@@ -31,8 +31,6 @@ chunk size (frames are solved in fixed-size chunks, the last one padded).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
-
 import numpy as np
 
 from usdmotion.kinematics import fk_arrays
@@ -45,6 +43,7 @@ LM_LAMBDA_MIN, LM_LAMBDA_MAX = 1e-5, 1e8
 #: Floor of the damping matrix relative to the mean curvature (twist null spaces).
 LM_DIAG_FLOOR = 1e-3
 ADAM_LR = 0.1
+LM_ITERATIONS = 10
 ADAM_ITERATIONS = 500
 
 
@@ -360,22 +359,23 @@ def _make_adam(problem: Problem, iterations: int, lr: float):
     return jax.jit(solve)
 
 
-@lru_cache(maxsize=32)
-def _compiled(key: tuple, method: str, iterations: int, lr: float, problem_ref):
-    problem = problem_ref[0]
-    if method == "lm":
-        return _make_lm(problem, iterations)
-    return _make_adam(problem, iterations, lr)
+_EXECUTABLES: dict = {}
 
 
-class _Ref(tuple):
-    """Carries the problem into the cache without taking part in the key."""
+def _executable(problem: Problem, method: str, iterations: int, lr: float, args) -> tuple[object, float]:
+    """``(compiled function, seconds spent compiling)`` for these argument shapes (cached)."""
+    import time
 
-    def __hash__(self):
-        return 0
-
-    def __eq__(self, other):
-        return isinstance(other, _Ref)
+    key = (problem.key(), method, iterations, lr, tuple((a.shape, str(a.dtype)) for a in args))
+    if key in _EXECUTABLES:
+        return _EXECUTABLES[key], 0.0
+    start = time.perf_counter()
+    fn = _make_lm(problem, iterations) if method == "lm" else _make_adam(problem, iterations, lr)
+    compiled = fn.lower(*args).compile()
+    if len(_EXECUTABLES) >= 32:
+        _EXECUTABLES.pop(next(iter(_EXECUTABLES)))
+    _EXECUTABLES[key] = compiled
+    return compiled, time.perf_counter() - start
 
 
 def _bucket(n: int, smallest: int = 16) -> int:
@@ -396,9 +396,33 @@ def chunk_plan(n_frames: int, problem: Problem, budget_bytes: float = 64e6) -> t
     return _bucket(-(-n_frames // calls)), calls
 
 
+@dataclass(frozen=True)
+class Solution:
+    """Result of :func:`solve`: float64 NumPy arrays and timings.
+
+    Attributes:
+        q: ``(F, J, 4)`` local rotations (unit wxyz).
+        t: ``(F, J, 3)`` local translations (same centring as the input).
+        loss: ``(F,)`` final loss per frame (float32 solver arithmetic).
+        initial: ``(F,)`` loss of the initial guess.
+        compile_s: seconds spent compiling (0 when cached).
+        run_s: seconds spent optimising.
+        chunk: frames per compiled call; calls: number of calls.
+    """
+
+    q: np.ndarray
+    t: np.ndarray
+    loss: np.ndarray
+    initial: np.ndarray
+    compile_s: float
+    run_s: float
+    chunk: int
+    calls: int
+
+
 def solve(problem: Problem, q0: np.ndarray, t0: np.ndarray, targets: np.ndarray, method: str = "lm",
           iterations: int | None = None, chunk: int | None = None, lr: float = ADAM_LR,
-          progress=None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+          progress=None) -> Solution:
     """Optimise rotations (and free translations) of all frames.
 
     Args:
@@ -409,40 +433,45 @@ def solve(problem: Problem, q0: np.ndarray, t0: np.ndarray, targets: np.ndarray,
         method: ``"lm"`` or ``"adam"``.
         iterations: LM iterations (default 10) or Adam iterations (default 500).
         chunk: frames per compiled call (default :func:`chunk_plan`).
+        lr: Adam's learning rate.
         progress: optional ``callable(frames_done)``.
-
-    Returns:
-        ``(q (F,J,4), t (F,J,3), loss (F,), initial_loss (F,))`` as float64 NumPy arrays.
     """
+    import time
+
+    import jax
     import jax.numpy as jnp
 
     from usdmotion.rotations import quat_to_euler
 
     if method not in ("lm", "adam"):
         raise ValueError(f"unknown method {method!r}")
-    iterations = iterations if iterations is not None else (10 if method == "lm" else ADAM_ITERATIONS)
+    iterations = int(iterations if iterations is not None else (LM_ITERATIONS if method == "lm" else ADAM_ITERATIONS))
     n_frames = q0.shape[0]
     chunk = chunk or chunk_plan(n_frames, problem)[0]
-    fn = _compiled(problem.key(), method, int(iterations), float(lr), _Ref((problem,)))
     theta0 = None
     if method == "adam":
         theta0 = np.zeros(q0.shape[:1] + (len(problem.rot_joints), 3))
         for k, (j, order) in enumerate(zip(problem.rot_joints, problem.orders)):
             theta0[:, k] = quat_to_euler(q0[:, j], order)
-    outs = []
+    outs, compile_s, run_s, calls = [], 0.0, 0.0, 0
     for start in range(0, n_frames, chunk):
         stop = min(start + chunk, n_frames)
         pad = np.r_[np.arange(start, stop), np.full(chunk - (stop - start), stop - 1)]
         args = [jnp.asarray(a[pad], jnp.float32) for a in (q0, t0, targets)]
         if theta0 is not None:
             args.append(jnp.asarray(theta0[pad], jnp.float32))
-        result = [np.asarray(x, np.float64)[: stop - start] for x in fn(*args)]
-        outs.append(result)
+        fn, seconds = _executable(problem, method, iterations, float(lr), args)
+        compile_s += seconds
+        began = time.perf_counter()
+        result = jax.block_until_ready(fn(*args))
+        run_s += time.perf_counter() - began
+        outs.append([np.asarray(x, np.float64)[: stop - start] for x in result])
+        calls += 1
         if progress is not None:
             progress(stop - start)
     q, t, loss, initial = (np.concatenate(parts) for parts in zip(*outs))
     q /= np.linalg.norm(q, axis=-1, keepdims=True)
-    return q, t, loss, initial
+    return Solution(q, t, loss, initial, compile_s, run_s, chunk, calls)
 
 
 def device_description() -> str:
@@ -452,3 +481,29 @@ def device_description() -> str:
     device = jax.devices()[0]
     kind = getattr(device, "device_kind", "")
     return device.platform + (f" ({kind})" if kind and kind.lower() != device.platform else "")
+
+
+def enable_compilation_cache() -> str | None:
+    """Turn on JAX's persistent compilation cache (for command-line runs); returns its folder.
+
+    Folder: ``$USDMOTION_JAX_CACHE``, else ``$XDG_CACHE_HOME/usdmotion/jax`` (default
+    ``~/.cache/usdmotion/jax``); ``USDMOTION_JAX_CACHE=off`` disables it. A cache folder
+    the user already configured for JAX is left alone. Repeat runs on the same skeletons
+    then skip most of the XLA compile time.
+    """
+    import os
+    from pathlib import Path
+
+    import jax
+
+    setting = os.environ.get("USDMOTION_JAX_CACHE", "")
+    if setting.lower() in ("off", "0", "no", "false") or jax.config.jax_compilation_cache_dir:
+        return jax.config.jax_compilation_cache_dir or None
+    folder = Path(setting) if setting else Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "usdmotion" / "jax"
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError:
+        return None
+    jax.config.update("jax_compilation_cache_dir", str(folder))
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+    return str(folder)
