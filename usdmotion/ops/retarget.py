@@ -433,9 +433,13 @@ def retarget(source: Motion, target: Motion | None = None, *, remove=(), add=(),
     targets = setup.targets[:, setup.mapped] - centre[:, None]
     prepared = time.perf_counter()
     solution = solve(_problem(setup), q0, t0, targets, method=method, iterations=iterations, progress=progress)
-    t = solution.t
+    q, t = solution.q, solution.t
     t[:, setup.anchor] += centre
-    motion = _output_motion(source, setup, solution.q, t)
+    # keep, per frame, the better of the initial guess and the float32 solution in float64
+    args = (setup.rig.parents, setup.mapped, setup.targets, setup.weights)
+    worse = frame_losses(t, q, *args) > frame_losses(setup.translations, q0, *args)
+    q[worse], t[worse] = q0[worse], setup.translations[worse]
+    motion = _output_motion(source, setup, q, t)
     report = retarget_report.build(source, setup, motion, q0, init_name, method, iterations,
                                    {"setup": prepared - start, "compile": solution.compile_s, "solve": solution.run_s},
                                    source_path, target_path)

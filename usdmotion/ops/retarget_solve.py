@@ -226,45 +226,69 @@ def make_jacobian(problem: Problem):
     return jacobian
 
 
-def _make_lm(problem: Problem, iterations: int):
-    """A jitted ``(q, t, targets) -> (q, t, loss (B,), initial loss (B,))`` LM solver."""
-    import jax
+def make_apply(problem: Problem):
+    """``(q, t, world_q, step (B, P)) -> (q, t)``: apply world-frame increments on the manifold.
+
+    Rotation joint ``j``: ``q_j ← normalize(q_j · exp(R(W_j)ᵀ ω_j))`` (``W_j`` its world
+    rotation), i.e. its world rotation becomes ``exp(ω_j) · W_j``; free translation ``k``:
+    ``t_k ← t_k + R(W_parent)ᵀ δ_k``.
+    """
     import jax.numpy as jnp
 
     parents = problem.parents
-    mapped = jnp.asarray(problem.mapped)
-    w = jnp.asarray(problem.weights, jnp.float32)
     rot_j = jnp.asarray(problem.rot_joints)
     trans_j = jnp.asarray(problem.trans_joints)
     trans_parent = jnp.asarray(np.where(parents[problem.trans_joints] < 0, len(parents),
                                         parents[problem.trans_joints]))
     n_rot, n_trans = len(problem.rot_joints), len(problem.trans_joints)
+
+    def apply(q, t, world_q, step):
+        conj = jnp.asarray([1.0, -1.0, -1.0, -1.0], q.dtype)
+        if n_rot:
+            omega = step[:, : 3 * n_rot].reshape(-1, n_rot, 3)
+            local = quat_rotate(world_q[:, rot_j] * conj, omega)
+            q = q.at[:, rot_j].set(quat_normalize(quat_mul(q[:, rot_j], quat_exp(local))))
+        if n_trans:
+            delta = step[:, 3 * n_rot:].reshape(-1, n_trans, 3)
+            identity = jnp.broadcast_to(jnp.asarray([1.0, 0, 0, 0], q.dtype), (q.shape[0], 1, 4))
+            parent_q = jnp.concatenate([world_q, identity], axis=1)[:, trans_parent]
+            t = t.at[:, trans_j].add(quat_rotate(parent_q * conj, delta))
+        return q, t
+
+    return apply
+
+
+def make_residuals(problem: Problem):
+    """``(q, t, targets) -> (world_q, world_p, r (B, M, 3), loss (B,))`` with
+    ``r = p_mapped − targets`` and ``loss = Σ_m w_m ‖r_m‖²`` per frame."""
+    import jax.numpy as jnp
+
+    parents = problem.parents
+    mapped = jnp.asarray(problem.mapped)
+    w = jnp.asarray(problem.weights, jnp.float32)
+
+    def residuals(q, t, targets):
+        world_q, world_p = fk_arrays(q, t, parents)
+        r = world_p[:, mapped] - targets
+        return world_q, world_p, r, jnp.einsum("bmk,bmk,m->b", r, r, w.astype(r.dtype))
+
+    return residuals
+
+
+def _make_lm(problem: Problem, iterations: int):
+    """A jitted ``(q, t, targets) -> (q, t, loss (B,), initial loss (B,))`` LM solver."""
+    import jax
+    import jax.numpy as jnp
+
     jacobian = make_jacobian(problem)
-    sqrt_w = jnp.sqrt(w)
+    sqrt_w = jnp.sqrt(jnp.asarray(problem.weights, jnp.float32))
+    evaluate = make_residuals(problem)
+    apply = make_apply(problem)
 
     def normal_equations(world_p, r):
         jac = jacobian(world_p)
         rw = (r * sqrt_w[:, None]).reshape(r.shape[0], -1)
         return jnp.einsum("bri,brj->bij", jac, jac), jnp.einsum("bri,br->bi", jac, rw)
-
-    def evaluate(q, t, targets):
-        world_q, world_p = fk_arrays(q, t, parents)
-        r = world_p[:, mapped] - targets
-        return world_q, world_p, r, jnp.einsum("bmk,bmk,m->b", r, r, w)
-
-    def apply(q, t, world_q, step):
-        if n_rot:
-            omega = step[:, : 3 * n_rot].reshape(-1, n_rot, 3)
-            w = world_q[:, rot_j]
-            local = quat_rotate(w * jnp.asarray([1.0, -1.0, -1.0, -1.0], w.dtype), omega)
-            q = q.at[:, rot_j].set(quat_normalize(quat_mul(q[:, rot_j], quat_exp(local))))
-        if n_trans:
-            delta = step[:, 3 * n_rot:].reshape(-1, n_trans, 3)
-            identity = jnp.broadcast_to(jnp.asarray([1.0, 0, 0, 0], q.dtype), (q.shape[0], 1, 4))
-            wp = jnp.concatenate([world_q, identity], axis=1)[:, trans_parent]
-            local = quat_rotate(wp * jnp.asarray([1.0, -1.0, -1.0, -1.0], wp.dtype), delta)
-            t = t.at[:, trans_j].add(local)
-        return q, t
 
     def solve(q, t, targets):
         world_q, world_p, r, loss = evaluate(q, t, targets)
