@@ -103,9 +103,9 @@ def frame_losses(offsets_or_t: np.ndarray, rotations: np.ndarray, parents: np.nd
 # ------------------------------------------------------------------------- setup
 
 
-def _target(source: Motion, target: Motion | None, remove, add, target_path):
+def _target(source: Motion, target: Motion | None, remove, add, target_path, source_path):
     if target is None:
-        derived = derive_rig(rig_from_motion(source, "source"), remove, add)
+        derived = derive_rig(rig_from_motion(source, source_path or "source"), remove, add)
         return derived.rig, derived, "derived"
     derived = derive_rig(rig_from_motion(target, target_path or "target"), remove, add) if (remove or add) else None
     return (derived.rig if derived else rig_from_motion(target, target_path or "target")), derived, "target"
@@ -120,13 +120,13 @@ def _chain_sizes(rig: Rig, mapped_mask: np.ndarray, source_of: np.ndarray, posit
 
 def prepare(source: Motion, target: Motion | None = None, *, remove=(), add=(), joint_map: JointMap | None = None,
             lengths: str = "source", directions: str = "auto", scale="units", local: bool = False,
-            target_path: str | None = None) -> Setup:
+            target_path: str | None = None, source_path: str | None = None) -> Setup:
     """Build the arrays of a retargeting problem (steps 1 and the initial guesses)."""
     if lengths not in ("source", "target"):
         raise RetargetError(f"lengths must be 'source' or 'target', got {lengths!r}")
     if directions not in ("auto", "mean", "rest"):
         raise RetargetError(f"directions must be 'auto', 'mean' or 'rest', got {directions!r}")
-    rig, derived, mode = _target(source, target, remove, add, target_path)
+    rig, derived, mode = _target(source, target, remove, add, target_path, source_path)
     if mode == "derived":
         default = {rig.joint_names[j]: (source.joint_names[o] if o >= 0 else None) for j, o in enumerate(derived.origin)}
         source_of, weights, jmap = resolve_map(joint_map, source.joint_names, rig.joint_names, rig.end_sites, default)
@@ -424,7 +424,8 @@ def retarget(source: Motion, target: Motion | None = None, *, remove=(), add=(),
     if source.n_frames == 0:
         raise RetargetError(f"{source_path or 'source'}: the motion has no frames")
     setup = prepare(source, target, remove=remove, add=add, joint_map=joint_map, lengths=lengths,
-                    directions=directions, scale=scale, local=local, target_path=target_path)
+                    directions=directions, scale=scale, local=local, target_path=target_path,
+                    source_path=source_path)
     init_name = _choose_init(setup, init, method)
     q0 = setup.inits[init_name]
     centre = setup.translations[:, setup.anchor].copy()
