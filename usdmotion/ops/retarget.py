@@ -399,7 +399,8 @@ def retarget(source: Motion, target: Motion | None = None, *, remove=(), add=(),
         joint_map: target → source joint map (default: identity for derived rigs,
             automatic otherwise).
         method: ``"lm"`` (default) or ``"adam"`` (the paper's reference).
-        iterations: solver iterations (default 10 for LM, 500 for Adam).
+        iterations: LM's maximum (default 100; it stops once every frame has converged) or
+            Adam's iteration count (default 500).
         lengths: ``"source"`` (step 1: mean source bone lengths) or ``"target"`` (keep).
         directions: ``"auto"``/``"mean"``/``"rest"`` for derived rigs (see module doc).
         scale: ``"units"``, ``"auto"`` or a number (targets from files only).
@@ -445,6 +446,7 @@ def retarget(source: Motion, target: Motion | None = None, *, remove=(), add=(),
                                    {"setup": prepared - start, "compile": solution.compile_s, "solve": solution.run_s},
                                    source_path, target_path)
     report["chunks"] = {"frames_per_call": solution.chunk, "calls": solution.calls}
+    report["iterations_run"] = solution.iterations
     report["time_s"]["total"] = time.perf_counter() - start
     return RetargetResult(motion, report)
 

@@ -15,9 +15,10 @@ Methods:
   optimised joint ``j`` gets a world-frame tangent update ``ω_j`` applied as
   ``q_j ← q_j · exp(R(W_j)ᵀ ω_j)``; the Jacobian is analytic,
   ``∂p_m/∂ω_j = [p_j − p_m]_×`` for every mapped descendant ``m`` of ``j`` (and the
-  identity for free translations), built for all frames in one array expression.
-  Steps are accepted per frame only when they lower the loss, so the current iterate
-  is always the best one seen.
+  identity for free translations). The damped normal equations are solved on the
+  joint tree in O(joints) (:mod:`usdmotion.ops.retarget_tree`); the dense Cholesky
+  form is kept as a reference (``linear="dense"``). Steps are accepted per frame only
+  when they lower the loss, so the current iterate is always the best one seen.
 * ``adam``: the paper's reference: Adam (lr 0.1, 500 iterations, Kingma–Ba defaults)
   on the Euler angles (radians, each joint's channel order) of every optimised joint,
   for every frame separately — vmapped, which is mathematically the same as a loop
@@ -43,7 +44,13 @@ LM_LAMBDA_MIN, LM_LAMBDA_MAX = 1e-5, 1e8
 #: Floor of the damping matrix relative to the mean curvature (twist null spaces).
 LM_DIAG_FLOOR = 1e-3
 ADAM_LR = 0.1
-LM_ITERATIONS = 10
+#: LM stops when every frame of a chunk went two iterations without gaining LM_RTOL (relative)
+#: or when the chunk's total loss gained less than LM_RTOL_TOTAL twice in a row; at most
+#: LM_ITERATIONS iterations.
+LM_ITERATIONS = 100
+LM_RTOL = 1e-5
+LM_RTOL_TOTAL = 1e-6
+LM_ATOL = 1e-12  # ... or when its loss fell below this fraction of where it started
 ADAM_ITERATIONS = 500
 
 
@@ -94,106 +101,6 @@ def _skew(a):
     z = jnp.zeros_like(a[..., 0])
     x, y, w = a[..., 0], a[..., 1], a[..., 2]
     return jnp.stack([jnp.stack([z, -w, y], -1), jnp.stack([w, z, -x], -1), jnp.stack([-y, x, z], -1)], -2)
-
-
-def _pairs(problem: Problem) -> np.ndarray:
-    """``(R, R)`` index of the deeper joint of every pair of rotation joints on one line of
-    descent (the common descendants are that joint's), ``-1`` for unrelated pairs."""
-    from usdmotion.ops.hierarchy import ancestor_matrix
-
-    rot = problem.rot_joints
-    anc = ancestor_matrix(problem.parents)[np.ix_(rot, rot)] | np.eye(len(rot), dtype=bool)
-    k_below = anc  # [j, k]: rot j is an ancestor-or-self of rot k
-    idx = np.arange(len(rot))
-    return np.where(k_below, idx[None, :], np.where(k_below.T, idx[:, None], -1))
-
-
-def make_normal_equations(problem: Problem):
-    """``(world_p (B,J,3), residual (B,M,3)) -> (H (B,P,P), g (B,P))`` for LM, where
-    ``H = JᵀWJ`` and ``g = JᵀW r`` of the analytic Jacobian (see :func:`make_jacobian`),
-    built from moments of the mapped descendants of every rotation joint instead of
-    ``J`` itself: ``H_jk = tr(X) I − X`` with ``X = Σ_m w_m (p_k − p_m)(p_j − p_m)ᵀ`` over
-    the common mapped descendants ``m`` (those of the deeper of ``j``, ``k``), and
-    ``g_j = Σ_m w_m (p_m − p_j) × r_m``. The moments ``Σ w``, ``Σ w p``, ``Σ w p pᵀ``,
-    ``Σ w r``, ``Σ w p × r`` of all joints come from one matrix product with the
-    ``(M, R)`` descendant mask. Positions must be centred per frame (float32).
-    """
-    import jax.numpy as jnp
-
-    mapped = jnp.asarray(problem.mapped)
-    w = jnp.asarray(problem.weights, jnp.float32)
-    rot_j = jnp.asarray(problem.rot_joints)
-    rot_mask, trans_mask = _masks(problem)
-    n_rot, n_trans = len(problem.rot_joints), len(problem.trans_joints)
-    pairs = _pairs(problem)
-    deeper = jnp.asarray(np.maximum(pairs, 0))
-    related = jnp.asarray(pairs >= 0, jnp.float32)
-    # one mask for every moment: rotation joints' strict descendants, then translation subtrees
-    mask = jnp.asarray(np.concatenate([rot_mask, trans_mask], axis=1) * np.asarray(problem.weights)[:, None], jnp.float32)
-    totals = jnp.sum(mask, axis=0)  # (R + T,)
-    eye3 = jnp.eye(3, dtype=jnp.float32)
-
-    def equations(world_p, r):
-        batch = world_p.shape[0]
-        pm = world_p[:, mapped]  # (B, M, 3)
-        outer = (pm[..., :, None] * pm[..., None, :]).reshape(pm.shape[:2] + (9,))
-        feats = jnp.concatenate([pm, outer, r, jnp.cross(pm, r)], axis=-1)  # (B, M, 18)
-        n_feat = feats.shape[-1]
-        moments = (jnp.swapaxes(feats, 1, 2).reshape(batch * n_feat, -1) @ mask).reshape(batch, n_feat, -1)
-        s1, s2, rs, cr = moments[:, 0:3], moments[:, 3:12], moments[:, 12:15], moments[:, 15:18]
-        blocks_g = []
-        h = None
-        if n_rot:
-            pr = world_p[:, rot_j]  # (B, R, 3)
-            sd = jnp.swapaxes(s1[:, :, :n_rot], 1, 2)[:, deeper]  # (B, R, R, 3)
-            qd = jnp.swapaxes(s2[:, :, :n_rot], 1, 2)[:, deeper].reshape(batch, n_rot, n_rot, 3, 3)
-            wd = totals[:n_rot][deeper]
-            p_j, p_k = pr[:, :, None, :], pr[:, None, :, :]
-            x = (wd[None, :, :, None, None] * p_k[..., :, None] * p_j[..., None, :] - p_k[..., :, None] * sd[..., None, :]
-                 - sd[..., :, None] * p_j[..., None, :] + qd)
-            trace = x[..., 0, 0] + x[..., 1, 1] + x[..., 2, 2]
-            h_rr = (trace[..., None, None] * eye3 - x) * related[None, :, :, None, None]
-            h = jnp.transpose(h_rr, (0, 1, 3, 2, 4)).reshape(batch, 3 * n_rot, 3 * n_rot)
-            # g_j = Σ w (p_m − p_j) × r_m = Σ w p_m × r_m − p_j × Σ w r_m
-            g_r = jnp.swapaxes(cr[:, :, :n_rot], 1, 2) - jnp.cross(pr, jnp.swapaxes(rs[:, :, :n_rot], 1, 2))
-            blocks_g.append(g_r.reshape(batch, 3 * n_rot))
-        if n_trans:
-            h_tt = jnp.kron(jnp.asarray(trans_mask.T @ (trans_mask * np.asarray(problem.weights)[:, None])), eye3)
-            h_tt = jnp.broadcast_to(h_tt, (batch, 3 * n_trans, 3 * n_trans))
-            blocks_g.append(jnp.swapaxes(rs[:, :, n_rot:], 1, 2).reshape(batch, 3 * n_trans))
-            if n_rot:
-                # Σ_{m ∈ sub(t) ∩ desc(j)} w (p_j − p_m): the translation subtree holds every
-                # optimised joint's descendants when it holds the joint itself
-                inside = jnp.asarray(_trans_contains(problem), jnp.float32)  # (T, R)
-                a = (totals[:n_rot][None, :, None] * pr[:, None] - jnp.swapaxes(s1[:, :, :n_rot], 1, 2)[:, None])
-                h_tr = _skew(a * inside[None, :, :, None])  # (B, T, R, 3, 3)
-                h_tr = jnp.transpose(h_tr, (0, 1, 3, 2, 4)).reshape(batch, 3 * n_trans, 3 * n_rot)
-                h = jnp.concatenate([jnp.concatenate([h, jnp.swapaxes(h_tr, 1, 2)], axis=2),
-                                     jnp.concatenate([h_tr, h_tt], axis=2)], axis=1)
-            else:
-                h = h_tt
-        g = jnp.concatenate(blocks_g, axis=1) if len(blocks_g) > 1 else blocks_g[0]
-        return h, g
-
-    return equations
-
-
-def _trans_contains(problem: Problem) -> np.ndarray:
-    """``(T, R)`` bool: rotation joint inside the subtree of translation joint (itself included).
-
-    Raises ``ValueError`` when a rotation joint has descendants both inside and outside a
-    translation subtree (never for the problems :mod:`usdmotion.ops.retarget` builds).
-    """
-    from usdmotion.ops.hierarchy import ancestor_matrix
-
-    sub = ancestor_matrix(problem.parents) | np.eye(len(problem.parents), dtype=bool)
-    inside = sub[problem.trans_joints][:, problem.rot_joints]
-    rot_mask, trans_mask = _masks(problem)
-    for t in range(len(problem.trans_joints)):
-        for r in np.flatnonzero(~inside[t]):
-            if np.any(rot_mask[:, r].astype(bool) & trans_mask[:, t].astype(bool)):
-                raise ValueError("a rotation joint outside a translation subtree moves joints inside it")
-    return inside
 
 
 def make_jacobian(problem: Problem):
@@ -275,44 +182,72 @@ def make_residuals(problem: Problem):
     return residuals
 
 
-def _make_lm(problem: Problem, iterations: int):
-    """A jitted ``(q, t, targets) -> (q, t, loss (B,), initial loss (B,))`` LM solver."""
+def make_dense_step(problem: Problem):
+    """``(world_p, r, lam) -> step``: the same LM step as :func:`make_tree_step` from the
+    explicit Jacobian, ``JᵀWJ`` and a batched Cholesky factorisation (reference)."""
     import jax
     import jax.numpy as jnp
 
     jacobian = make_jacobian(problem)
     sqrt_w = jnp.sqrt(jnp.asarray(problem.weights, jnp.float32))
+
+    def step(world_p, r, lam):
+        jac = jacobian(world_p)
+        rw = (r * sqrt_w[:, None].astype(r.dtype)).reshape(r.shape[0], -1)
+        h, g = jnp.einsum("bri,brj->bij", jac, jac), jnp.einsum("bri,br->bi", jac, rw)
+        diag = jnp.diagonal(h, axis1=1, axis2=2).reshape(h.shape[0], -1, 3)
+        damp = (diag + LM_DIAG_FLOOR * jnp.mean(diag, axis=-1, keepdims=True) + 1e-12).reshape(h.shape[0], -1)
+        damped = h + (lam[:, None] * damp)[:, :, None] * jnp.eye(h.shape[-1], dtype=h.dtype)
+        return -jax.scipy.linalg.cho_solve((jnp.linalg.cholesky(damped), True), g[..., None])[..., 0]
+
+    return step
+
+
+def _make_lm(problem: Problem, iterations: int, linear: str = "tree"):
+    """A jitted ``(q, t, targets) -> (q, t, loss (B,), initial loss (B,), iterations run)``
+    LM solver (at most ``iterations``; stops early when every frame has converged).
+
+    ``linear``: ``"tree"`` (:func:`make_tree_step`, default) or ``"dense"``
+    (:func:`make_dense_step`); both solve the same damped system.
+    """
+    import jax
+    import jax.numpy as jnp
+
+    from usdmotion.ops.retarget_tree import make_tree_step
+
     evaluate = make_residuals(problem)
     apply = make_apply(problem)
-
-    def normal_equations(world_p, r):
-        jac = jacobian(world_p)
-        rw = (r * sqrt_w[:, None]).reshape(r.shape[0], -1)
-        return jnp.einsum("bri,brj->bij", jac, jac), jnp.einsum("bri,br->bi", jac, rw)
+    lm_step = make_tree_step(problem) if linear == "tree" else make_dense_step(problem)
 
     def solve(q, t, targets):
         world_q, world_p, r, loss = evaluate(q, t, targets)
         initial = loss
-        lam = jnp.full(loss.shape, LM_LAMBDA0, jnp.float32)
+        lam = jnp.full(loss.shape, LM_LAMBDA0, loss.dtype)
+        stall = jnp.zeros(loss.shape, jnp.int32)  # iterations in a row without real progress
 
-        def body(_, carry):
-            q, t, world_q, world_p, r, loss, lam = carry
-            h, g = normal_equations(world_p, r)
-            diag = jnp.diagonal(h, axis1=1, axis2=2)
-            floor = LM_DIAG_FLOOR * jnp.mean(diag, axis=1, keepdims=True) + 1e-12
-            damped = h + (lam[:, None] * (diag + floor))[:, :, None] * jnp.eye(h.shape[-1], dtype=h.dtype)
-            chol = jnp.linalg.cholesky(damped)
-            step = -jax.scipy.linalg.cho_solve((chol, True), g[..., None])[..., 0]
-            q2, t2 = apply(q, t, world_q, step)
+        def cond(carry):
+            i, loss, stall, flat = carry[0], carry[6], carry[8], carry[9]
+            frames_done = (stall >= 2) | (loss <= LM_ATOL * initial)
+            return (i < iterations) & ~jnp.all(frames_done) & (flat < 2)
+
+        def body(carry):
+            i, q, t, world_q, world_p, r, loss, lam, stall, flat = carry
+            q2, t2 = apply(q, t, world_q, lm_step(world_p, r, lam))
             world_q2, world_p2, r2, loss2 = evaluate(q2, t2, targets)
             ok = (loss2 < loss) & jnp.isfinite(loss2)
+            gain = jnp.where(ok, (loss - loss2) / jnp.maximum(loss, 1e-30), 0.0)
+            stall = jnp.where(gain > LM_RTOL, 0, stall + 1)
             pick = lambda new, old: jnp.where(ok.reshape((-1,) + (1,) * (new.ndim - 1)), new, old)  # noqa: E731
+            new_loss = pick(loss2, loss)
+            total_gain = (jnp.sum(loss) - jnp.sum(new_loss)) / jnp.maximum(jnp.sum(loss), 1e-30)
+            flat = jnp.where(total_gain < LM_RTOL_TOTAL, flat + 1, 0)
             lam = jnp.clip(jnp.where(ok, lam * LM_DOWN, lam * LM_UP), LM_LAMBDA_MIN, LM_LAMBDA_MAX)
-            return (pick(q2, q), pick(t2, t), pick(world_q2, world_q), pick(world_p2, world_p), pick(r2, r),
-                    pick(loss2, loss), lam)
+            return (i + 1, pick(q2, q), pick(t2, t), pick(world_q2, world_q), pick(world_p2, world_p), pick(r2, r),
+                    new_loss, lam, stall, flat)
 
-        carry = jax.lax.fori_loop(0, iterations, body, (q, t, world_q, world_p, r, loss, lam))
-        return carry[0], carry[1], carry[5], initial
+        carry = jax.lax.while_loop(cond, body, (jnp.int32(0), q, t, world_q, world_p, r, loss, lam, stall,
+                                                jnp.int32(0)))
+        return carry[1], carry[2], carry[6], initial, carry[0]
 
     return jax.jit(solve)
 
@@ -378,7 +313,7 @@ def _make_adam(problem: Problem, iterations: int, lr: float):
         theta, tt = best
         q = q.at[:, rot_j].set(_euler_quats(theta, groups, n_rot)) if n_rot else q
         t = t.at[:, trans_j].set(tt) if len(problem.trans_joints) else t
-        return q, t, best_loss, initial
+        return q, t, best_loss, initial, jnp.int32(iterations)
 
     return jax.jit(solve)
 
@@ -432,6 +367,7 @@ class Solution:
         compile_s: seconds spent compiling (0 when cached).
         run_s: seconds spent optimising.
         chunk: frames per compiled call; calls: number of calls.
+        iterations: most iterations any chunk ran (LM stops early when converged).
     """
 
     q: np.ndarray
@@ -442,6 +378,7 @@ class Solution:
     run_s: float
     chunk: int
     calls: int
+    iterations: int
 
 
 def solve(problem: Problem, q0: np.ndarray, t0: np.ndarray, targets: np.ndarray, method: str = "lm",
@@ -455,7 +392,7 @@ def solve(problem: Problem, q0: np.ndarray, t0: np.ndarray, targets: np.ndarray,
         t0: ``(F, J, 3)`` local translations (root: world position), already centred.
         targets: ``(F, M, 3)`` source positions of the mapped joints, same frame/centring.
         method: ``"lm"`` or ``"adam"``.
-        iterations: LM iterations (default 10) or Adam iterations (default 500).
+        iterations: LM's maximum (default 100; it stops when converged) or Adam's count (500).
         chunk: frames per compiled call (default :func:`chunk_plan`).
         lr: Adam's learning rate.
         progress: optional ``callable(frames_done)``.
@@ -477,7 +414,7 @@ def solve(problem: Problem, q0: np.ndarray, t0: np.ndarray, targets: np.ndarray,
         theta0 = np.zeros(q0.shape[:1] + (len(problem.rot_joints), 3))
         for k, (j, order) in enumerate(zip(problem.rot_joints, problem.orders)):
             theta0[:, k] = quat_to_euler(q0[:, j], order)
-    outs, compile_s, run_s, calls = [], 0.0, 0.0, 0
+    outs, compile_s, run_s, calls, ran = [], 0.0, 0.0, 0, 0
     for start in range(0, n_frames, chunk):
         stop = min(start + chunk, n_frames)
         pad = np.r_[np.arange(start, stop), np.full(chunk - (stop - start), stop - 1)]
@@ -489,13 +426,14 @@ def solve(problem: Problem, q0: np.ndarray, t0: np.ndarray, targets: np.ndarray,
         began = time.perf_counter()
         result = jax.block_until_ready(fn(*args))
         run_s += time.perf_counter() - began
-        outs.append([np.asarray(x, np.float64)[: stop - start] for x in result])
+        outs.append([np.asarray(x, np.float64)[: stop - start] for x in result[:4]])
+        ran = max(ran, int(result[4]))
         calls += 1
         if progress is not None:
             progress(stop - start)
     q, t, loss, initial = (np.concatenate(parts) for parts in zip(*outs))
     q /= np.linalg.norm(q, axis=-1, keepdims=True)
-    return Solution(q, t, loss, initial, compile_s, run_s, chunk, calls)
+    return Solution(q, t, loss, initial, compile_s, run_s, chunk, calls, ran)
 
 
 def device_description() -> str:
