@@ -20,6 +20,16 @@ def loss_stats(per_frame: np.ndarray, n_mapped: int) -> dict:
             "rms": float(np.sqrt(total / (len(per_frame) * max(n_mapped, 1))))}
 
 
+def largest_rotation_changes(rotations: np.ndarray, names, count: int = 5) -> dict:
+    """The ``count`` joints whose local rotation changes most between consecutive frames
+    (degrees): twists the loss cannot see would show up here as ~180° flips."""
+    if rotations.shape[0] < 2:
+        return {}
+    dot = np.abs(np.sum(rotations[1:] * rotations[:-1], axis=-1)).clip(0.0, 1.0)
+    worst = np.degrees(2 * np.arccos(dot)).max(axis=0)
+    return {names[j]: float(worst[j]) for j in np.argsort(-worst)[:count]}
+
+
 def build(source: Motion, setup, motion: Motion, q0: np.ndarray, init_name: str, method: str,
           iterations: int | None, times: dict, source_path: str | None, target_path: str | None) -> dict:
     """The report of a finished retargeting (see ``docs/retarget.md``)."""
@@ -80,6 +90,8 @@ def build(source: Motion, setup, motion: Motion, q0: np.ndarray, init_name: str,
         "per_joint_rms": {names[j]: float(np.sqrt(np.mean(err[:, k] ** 2))) for k, j in enumerate(mapped)},
         "per_joint_max": {names[j]: float(err[:, k].max()) for k, j in enumerate(mapped)},
         "bone_lengths": bones,
+        "largest_rotation_change_deg": {"target": largest_rotation_changes(motion.rotations, names),
+                                        "source": largest_rotation_changes(source.rotations, source.joint_names)},
         "time_s": dict(times),
         "frames_per_second_solve": float(source.n_frames / times["solve"]) if times["solve"] > 0 else None,
     }

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from usdmotion.ops.retarget_solve import LM_DIAG_FLOOR, Problem
+from usdmotion.ops.retarget_solve import LM_DIAG_FLOOR, LM_NULL_DAMPING, Problem
 
 
 @dataclass(frozen=True)
@@ -171,10 +171,11 @@ def _eliminate(k, b, a, h_diag, lam):
     reduced quadratic ``(k_red 6×6 symmetric, b_red 6)``."""
     at = _transpose(a)
     g = _matmul(k, a)  # 6×3
-    floor = LM_DIAG_FLOOR * (h_diag[0] + h_diag[1] + h_diag[2]) / 3.0 + 1e-12
+    mean = (h_diag[0] + h_diag[1] + h_diag[2]) / 3.0
+    floor = LM_DIAG_FLOOR * mean + 1e-12
     m = _matmul(at, g)
     for i in range(3):
-        m[i][i] = m[i][i] + lam * (h_diag[i] + floor)
+        m[i][i] = m[i][i] + lam * (h_diag[i] + floor) + LM_NULL_DAMPING * mean
     minv = _inv3(m)
     atb = _matvec(at, b)
     gm = _matmul(g, minv)
@@ -209,7 +210,9 @@ def make_tree_step(problem: Problem):
     ``x_j = −M_j⁻¹ (G_jᵀ Z + A_jᵀ b_j)``. This is the articulated-body algorithm applied to
     the least-squares problem: O(joints) 6×6 work per frame, no Jacobian, no dense
     Hessian. ``D`` is the diagonal of ``H``'s 3×3 joint blocks (closed form from the
-    moments of each node's subtree of points) plus ``1e-3`` of their mean.
+    moments of each node's subtree of points) plus ``1e-3`` of their mean; a further
+    ``LM_NULL_DAMPING`` × that mean, not scaled by ``λ``, keeps steps out of directions the
+    loss cannot see (the twist of a bone with one mapped child).
 
     Layout: frames on the last axis, the 6×6 algebra unrolled into elementwise work and
     one vectorised step per tree level (XLA runs batched tiny matrix products slowly on
