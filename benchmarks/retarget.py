@@ -20,7 +20,6 @@ import json
 import os
 import platform
 import sys
-import time
 import warnings
 from pathlib import Path
 
@@ -155,6 +154,61 @@ def cross_rig(source_file: str, targets) -> list[dict]:
     return rows
 
 
+def print_speed(console, s: dict) -> None:
+    from rich.table import Table
+
+    from usdmotion.ops.retarget_solve import device_description
+
+    table = Table(title=f"{s['file']}: {s['source_joints']} -> {s['target_joints']} joints, {s['frames']} frames "
+                        f"({s['parameters_per_frame']} parameters/frame, {device_description()}, float32)")
+    for col in ("method", "frames timed", "frames/s", "time, all frames", "vs paper Adam", "loss (same frames)"):
+        table.add_column(col, justify="right" if col != "method" else "left")
+    lm, ad, av = s["lm"], s["adam_per_frame"], s["adam_vmapped"]
+    table.add_row(f"default (LM, {lm['iterations']} it., all frames at once)", f"{s['frames']} (all)",
+                  f"{lm['frames_per_second']:,.0f}", f"{lm['seconds_all_frames']:.3f} s",
+                  f"{s['speedup_vs_adam_per_frame']:,.0f}x", f"{lm['loss_on_adam_sample']:.6g} (sample)")
+    table.add_row("paper: Adam lr 0.1 x 500, per frame", f"{ad['frames_timed']} (sample)",
+                  f"{ad['frames_per_second']:,.1f}", f"{ad['seconds_all_frames_extrapolated']:.1f} s (extrapolated)",
+                  "1x", f"{ad['loss_on_sample']:.6g} (sample)")
+    table.add_row("paper's Adam, vmapped over frames", f"{av['frames_timed']} (block)",
+                  f"{av['frames_per_second']:,.1f}", f"{s['frames'] / av['frames_per_second']:.1f} s (extrapolated)",
+                  f"{av['frames_per_second'] / ad['frames_per_second']:.1f}x",
+                  f"{av['loss_on_block']:.6g} vs LM {lm['loss_on_adam_block']:.6g} (block)")
+    console.print(table)
+    runs = ", ".join(f"{x:.3f}" for x in lm["runs_s"])
+    console.print(f"compile: LM {lm['compile_s']:.1f} s, Adam per frame {ad['compile_s']:.1f} s (not in the times "
+                  f"above); LM runs {runs} s (best taken)")
+
+
+def print_paper(console, rows: list[dict]) -> None:
+    from rich.table import Table
+
+    table = Table(title="paper experiment: about half of the 31 CMU joints removed (list A: 13, list B: 14); loss "
+                        "before = rotations copied, offsets adapted; paper: 0.11 % / 0.23 %")
+    for col in ("file", "frames", "list", "joints", "step 1 directions", "loss before", "final loss",
+                "final / before", "worst joint (RMS, file units)"):
+        table.add_column(col, justify="left" if col in ("file", "step 1 directions", "list") else "right")
+    for r in rows:
+        worst = max(r["per_joint_rms"].items(), key=lambda kv: kv[1])
+        table.add_row(r["file"], str(r["frames"]), r["list"], r["joints"], r["directions"],
+                      f"{r['copied_loss']:.6g}", f"{r['final_loss']:.6g}", f"{100 * r['final_over_copied']:.3f} %",
+                      f"{worst[0]} {worst[1]:.3f}")
+    console.print(table)
+
+
+def print_cross(console, rows: list[dict]) -> None:
+    from rich.table import Table
+
+    table = Table(title="cross-rig: CMU walk (ASF units) -> target rig (cm); per-joint RMS error in cm")
+    for col in ("target", "bone lengths", "mapped", "RMS before", "RMS after", "worst joints (RMS cm)"):
+        table.add_column(col)
+    for r in rows:
+        worst = sorted(r["per_joint_rms"].items(), key=lambda kv: -kv[1])[:3]
+        table.add_row(r["target"], r["lengths"], str(r["mapped"]), f"{r['initial_rms']:.2f}",
+                      f"{r['final_rms']:.2f}", ", ".join(f"{k} {v:.1f}" for k, v in worst))
+    console.print(table)
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--file", default="cmu86/86_01_from_amc_cgspeed_layout.bvh")
@@ -164,60 +218,24 @@ def main(argv=None) -> int:
     parser.add_argument("--quick", action="store_true", help="speed table only")
     args = parser.parse_args(argv)
     from rich.console import Console
-    from rich.table import Table
 
     from usdmotion.ops.retarget_solve import device_description
 
     console = Console(width=150)
     result = {"machine": {"python": platform.python_version(), "cpus": os.cpu_count(), "device": device_description(),
                           "dtype": "float32", "platform": platform.platform()}}
-    motion = read(args.file)
-    s = speed(motion, args.adam_sample, args.adam_block, args.repeats)
+    s = speed(read(args.file), args.adam_sample, args.adam_block, args.repeats)
     s["file"] = args.file
     result["speed"] = s
-    table = Table(title=f"{args.file}: {s['source_joints']} -> {s['target_joints']} joints, {s['frames']} frames "
-                        f"({s['parameters_per_frame']} parameters/frame, {device_description()}, float32)")
-    for col in ("method", "frames timed", "frames/s", "time, all frames", "vs paper Adam", "loss (same frames)"):
-        table.add_column(col, justify="right" if col != "method" else "left")
-    lm, ad, av = s["lm"], s["adam_per_frame"], s["adam_vmapped"]
-    table.add_row(f"default (LM, {lm['iterations']} it., all frames at once)", f"{s['frames']} (all)", f"{lm['frames_per_second']:,.0f}",
-                  f"{lm['seconds_all_frames']:.3f} s", f"{s['speedup_vs_adam_per_frame']:,.0f}x",
-                  f"{lm['loss_on_adam_sample']:.6g} (sample)")
-    table.add_row("paper: Adam lr 0.1 x 500, per frame", f"{ad['frames_timed']} (sample)",
-                  f"{ad['frames_per_second']:,.1f}", f"{ad['seconds_all_frames_extrapolated']:.1f} s (extrapolated)", "1x",
-                  f"{ad['loss_on_sample']:.6g} (sample)")
-    table.add_row("paper's Adam, vmapped over frames", f"{av['frames_timed']} (block)", f"{av['frames_per_second']:,.1f}",
-                  f"{s['frames'] / av['frames_per_second']:.1f} s (extrapolated)",
-                  f"{av['frames_per_second'] / ad['frames_per_second']:.1f}x",
-                  f"{av['loss_on_block']:.6g} vs LM {lm['loss_on_adam_block']:.6g} (block)")
-    console.print(table)
-    console.print(f"compile: LM {lm['compile_s']:.1f} s, Adam per frame {ad['compile_s']:.1f} s (not in the times above); "
-                  f"LM runs {', '.join(f'{x:.3f}' for x in lm['runs_s'])} s (best taken)")
+    print_speed(console, s)
     if not args.quick:
-        rows = paper_experiment(["cmu/cgspeed_12_01_walk.bvh", "cmu86/86_01_from_amc_cgspeed_layout.bvh",
-                                 "cmu/cgspeed_01_01_playground_jumps.bvh"])
-        result["paper_experiment"] = rows
-        table = Table(title="paper experiment: about half of the 31 CMU joints removed (list A: 13, list B: 14); loss "
-                            "before = rotations copied, offsets adapted; paper: 0.11 % / 0.23 %")
-        for col in ("file", "frames", "list", "joints", "step 1 directions", "loss before", "final loss",
-                    "final / before", "worst joint (RMS, file units)"):
-            table.add_column(col, justify="left" if col in ("file", "step 1 directions", "list") else "right")
-        for r in rows:
-            worst = max(r["per_joint_rms"].items(), key=lambda kv: kv[1])
-            table.add_row(r["file"], str(r["frames"]), r["list"], r["joints"], r["directions"], f"{r['copied_loss']:.6g}",
-                          f"{r['final_loss']:.6g}", f"{100 * r['final_over_copied']:.3f} %", f"{worst[0]} {worst[1]:.3f}")
-        console.print(table)
-        rows = cross_rig("cmu/cgspeed_12_01_walk.bvh", ["cmu/daz_10_01_soccer_kick.bvh",
-                                                        "bandai1/dataset-1_walk_normal_001.bvh"])
-        result["cross_rig"] = rows
-        table = Table(title="cross-rig: CMU walk (ASF units) -> target rig (cm); per-joint RMS error in cm")
-        for col in ("target", "bone lengths", "mapped", "RMS before", "RMS after", "worst joints (RMS cm)"):
-            table.add_column(col)
-        for r in rows:
-            worst = sorted(r["per_joint_rms"].items(), key=lambda kv: -kv[1])[:3]
-            table.add_row(r["target"], r["lengths"], str(r["mapped"]), f"{r['initial_rms']:.2f}", f"{r['final_rms']:.2f}",
-                          ", ".join(f"{k} {v:.1f}" for k, v in worst))
-        console.print(table)
+        result["paper_experiment"] = paper_experiment(["cmu/cgspeed_12_01_walk.bvh",
+                                                       "cmu86/86_01_from_amc_cgspeed_layout.bvh",
+                                                       "cmu/cgspeed_01_01_playground_jumps.bvh"])
+        print_paper(console, result["paper_experiment"])
+        result["cross_rig"] = cross_rig("cmu/cgspeed_12_01_walk.bvh", ["cmu/daz_10_01_soccer_kick.bvh",
+                                                                       "bandai1/dataset-1_walk_normal_001.bvh"])
+        print_cross(console, result["cross_rig"])
     out = REPO / "benchmarks" / "results" / "retarget.json"
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(result, indent=2) + "\n")

@@ -41,7 +41,8 @@ def test_every_shared_rig_is_recognised(shared_file, relative, profile):
 
 def test_profiles_map_left_to_left(shared_file):
     src = names_of(shared_file("cmu/cgspeed_12_01_walk.bvh"))
-    for relative, left in (("cmu/daz_10_01_soccer_kick.bvh", "lShin"), ("bandai1/dataset-1_walk_normal_001.bvh", "LowerLeg_L"),
+    for relative, left in (("cmu/daz_10_01_soccer_kick.bvh", "lShin"),
+                           ("bandai1/dataset-1_walk_normal_001.bvh", "LowerLeg_L"),
                            ("other_rigs/20tab_test_freebvh_mixamorig.bvh", "mixamorig:LeftLeg")):
         jmap = auto_map(src, names_of(shared_file(relative)))
         assert jmap.pairs[left] == "LeftLeg"

@@ -79,7 +79,8 @@ def test_derived_rig_to_bvh_round_trip_and_report(capsys, tmp_path, walk16):
         k = back.joint_index(name)
         rms = np.sqrt(np.mean(np.sum((p_back[:, k] - p_src[:, source.joint_index(name)]) ** 2, -1)))
         assert rep["per_joint_rms"][name] == pytest.approx(rms, rel=1e-5, abs=1e-9)
-    assert rep["bone_lengths"]["Neck1"]["after"] == pytest.approx(np.linalg.norm(back.offsets[back.joint_index("Neck1")]))
+    neck1 = back.offsets[back.joint_index("Neck1")]
+    assert rep["bone_lengths"]["Neck1"]["after"] == pytest.approx(np.linalg.norm(neck1))
     assert rep["method"] == "lm" and rep["dtype"] == "float32" and rep["time_s"]["total"] > 0
 
 
@@ -126,7 +127,8 @@ def write_map(tmp_path, doc, name="map.json"):
 
 
 @pytest.mark.parametrize("args, message", [
-    (["--map", "MAP:{\"joints\": {\"Hipz\": \"Hips\"}}", "--remove", "LThumb"], "map.json: joints: no target joint named 'Hipz' (did you mean Hips?)"),
+    (["--map", "MAP:{\"joints\": {\"Hipz\": \"Hips\"}}", "--remove", "LThumb"],
+     "map.json: joints: no target joint named 'Hipz' (did you mean Hips?)"),
     (["--map", "MAP:{\"joints\": {\"Hips\": \"Hip\"}}", "--remove", "LThumb"], "no source joint named 'Hip'"),
     (["--map", "MAP:{\"joints\": {\"Hips\": {\"source\": \"Hips\", \"weight\": -1}}}", "--remove", "LThumb"],
      "invalid joint map at joints/Hips"),

@@ -45,8 +45,9 @@ def retarget(
     output: Annotated[Path, typer.Argument(help="Output: .bvh, .usda, .usdc, .usdz or .usd.", show_default=False)],
     target: Annotated[Path | None, typer.Option(help="Target skeleton: a BVH or UsdSkel file (its motion is ignored).",
                                                 show_default=False)] = None,
-    remove: Annotated[list[str] | None, typer.Option(help="Joint(s) to remove; children move to the parent. "
-                                                          "Repeat or separate with commas.", show_default=False)] = None,
+    remove: Annotated[list[str] | None, typer.Option(
+        help="Joint(s) to remove; children move to the parent. Repeat or separate with commas.",
+        show_default=False)] = None,
     add: Annotated[list[str] | None, typer.Option(help="Joint to add: NAME:PARENT:X,Y,Z[:CHILD,...] (offset in target "
                                                        "units; listed children of PARENT move under it). Repeatable.",
                                                   show_default=False)] = None,
@@ -87,7 +88,7 @@ def retarget(
     motion = read_input(source, units, up_axis, root_offset, lenient)
     target_motion = None if target is None else read_input(target, target_units, target_up_axis)
     with progress("retargeting", total=motion.n_frames, unit="frames") as update:
-        line = retarget_files(motion, source, output, target_motion, target, _names(remove), add or [], map_file, method.value,
-                   iterations, lengths.value, directions.value, scale, init.value, local, report,
-                   lambda n: update(advance=n))
+        line = retarget_files(motion, source, output, target_motion, target, _names(remove), add or [], map_file,
+                              method.value, iterations, lengths.value, directions.value, scale, init.value, local,
+                              report, lambda n: update(advance=n))
     typer.echo(line)

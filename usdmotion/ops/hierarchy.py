@@ -87,7 +87,8 @@ class Rig:
         try:
             return self.joint_names.index(name)
         except ValueError:
-            raise RetargetError(f"{self.path or 'skeleton'}: no {what} named {name!r}{_did_you_mean(name, self.joint_names)}") from None
+            hint = _did_you_mean(name, self.joint_names)
+            raise RetargetError(f"{self.path or 'skeleton'}: no {what} named {name!r}{hint}") from None
 
     def is_ancestor(self) -> np.ndarray:
         """``(J, J)`` bool, ``[a, d]`` true when ``a`` is a strict ancestor of ``d``."""

@@ -104,7 +104,8 @@ def load_joint_map(path: str | Path) -> JointMap:
         known = rig_profiles()
         for key in ("source_profile", "target_profile"):
             if doc[key] not in known:
-                raise JointMapError(path, f"{key}: unknown rig profile {doc[key]!r} (known: {', '.join(sorted(known))})")
+                raise JointMapError(path, f"{key}: unknown rig profile {doc[key]!r} "
+                                          f"(known: {', '.join(sorted(known))})")
         profiles = (doc["source_profile"], doc["target_profile"])
     auto = bool(doc.get("auto", False))
     return JointMap(pairs, weights, "file", str(path), auto, profiles)
@@ -265,7 +266,8 @@ def _close(name: str, names) -> str:
 def _check_names(joint_map: JointMap, source_names, target_names) -> None:
     for target, source in joint_map.pairs.items():
         if target not in target_names:
-            raise JointMapError(joint_map.path, f"joints: no target joint named {target!r}{_close(target, target_names)}")
+            raise JointMapError(joint_map.path,
+                                f"joints: no target joint named {target!r}{_close(target, target_names)}")
         if source is not None and source not in source_names:
             raise JointMapError(joint_map.path, f"joints: {target!r} -> no source joint named {source!r}"
                                                 f"{_close(source, source_names)}")

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from usdmotion.kinematics import fk_arrays, joint_positions, world_rotations_positions
+from usdmotion.kinematics import fk_arrays, world_rotations_positions
 from usdmotion.motion import POSITION_CHANNELS, Motion
 from usdmotion.ops.hierarchy import (Rig, RetargetError, UnitsMismatchError, adapt_offsets, ancestor_matrix,
                                      derive_rig, mapped_chains, rig_from_motion, source_bone_lengths)
@@ -128,7 +128,8 @@ def prepare(source: Motion, target: Motion | None = None, *, remove=(), add=(), 
         raise RetargetError(f"directions must be 'auto', 'mean' or 'rest', got {directions!r}")
     rig, derived, mode = _target(source, target, remove, add, target_path, source_path)
     if mode == "derived":
-        default = {rig.joint_names[j]: (source.joint_names[o] if o >= 0 else None) for j, o in enumerate(derived.origin)}
+        default = {rig.joint_names[j]: (source.joint_names[o] if o >= 0 else None)
+                   for j, o in enumerate(derived.origin)}
         source_of, weights, jmap = resolve_map(joint_map, source.joint_names, rig.joint_names, rig.end_sites, default)
     else:
         if directions == "mean":
@@ -196,7 +197,8 @@ def _mean_directions(derived, chains, source_of, positions, world_q_src, only_ch
         j = chain[-1]
         if len(chain) != 1 or len(derived.compose[j]) < 2:
             continue  # bones with an unchanged parent keep their rest direction
-        v = quat_rotate(quat_conjugate(world_q_src[:, source_of[a]]), positions[:, source_of[j]] - positions[:, source_of[a]])
+        bone = positions[:, source_of[j]] - positions[:, source_of[a]]
+        v = quat_rotate(quat_conjugate(world_q_src[:, source_of[a]]), bone)
         mean = v.mean(axis=0)
         norm = np.linalg.norm(mean)
         if norm > 1e-12 and (not only_changed or np.linalg.norm(derived.rig.offsets[j]) <= 1e-12):
@@ -364,7 +366,8 @@ def _aim(parent_q, origin, rays, targets) -> np.ndarray:
 def _choose_init(setup: Setup, init: str, method: str) -> str:
     if init != "auto":
         if init not in setup.inits:
-            raise RetargetError(f"init {init!r} is not available here (choose from {', '.join(['auto', *setup.inits])})")
+            choices = ", ".join(["auto", *setup.inits])
+            raise RetargetError(f"init {init!r} is not available here (choose from {choices})")
         return init
     if setup.mode == "derived":
         return "copy" if method == "adam" else "compose"

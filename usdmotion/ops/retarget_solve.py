@@ -214,7 +214,8 @@ def make_dense_step(problem: Problem):
         h, g = jnp.einsum("bri,brj->bij", jac, jac), jnp.einsum("bri,br->bi", jac, rw)
         diag = jnp.diagonal(h, axis1=1, axis2=2).reshape(h.shape[0], -1, 3)
         mean = jnp.mean(diag, axis=-1, keepdims=True)
-        damp = (lam[:, None, None] * (diag + LM_DIAG_FLOOR * mean + 1e-12) + LM_NULL_DAMPING * mean).reshape(h.shape[0], -1)
+        damp = lam[:, None, None] * (diag + LM_DIAG_FLOOR * mean + 1e-12) + LM_NULL_DAMPING * mean
+        damp = damp.reshape(h.shape[0], -1)
         damped = h + damp[:, :, None] * jnp.eye(h.shape[-1], dtype=h.dtype)
         return -jax.scipy.linalg.cho_solve((jnp.linalg.cholesky(damped), True), g[..., None])[..., 0]
 
@@ -505,7 +506,8 @@ def enable_compilation_cache() -> str | None:
     setting = os.environ.get("USDMOTION_JAX_CACHE", "")
     if setting.lower() in ("off", "0", "no", "false") or jax.config.jax_compilation_cache_dir:
         return jax.config.jax_compilation_cache_dir or None
-    folder = Path(setting) if setting else Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "usdmotion" / "jax"
+    cache_home = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+    folder = Path(setting) if setting else cache_home / "usdmotion" / "jax"
     try:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError:

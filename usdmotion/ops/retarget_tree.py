@@ -284,8 +284,9 @@ def make_tree_step(problem: Problem):
             b_arr = b_pts[idx] + b_up.get(d, 0.0)
             hd = h_diag[idx]
             a = twist_map(kinds, pj[idx], rot)
-            minv, g, atb, k_red, b_red = _eliminate(_sym_split(k_pts[idx] + k_up.get(d, 0.0)),
-                                                    [b_arr[:, i] for i in range(6)], a, [hd[:, i] for i in range(3)], lam)
+            k = _sym_split(k_pts[idx] + k_up.get(d, 0.0))
+            minv, g, atb, k_red, b_red = _eliminate(k, [b_arr[:, i] for i in range(6)], a,
+                                                    [hd[:, i] for i in range(3)], lam)
             store[d] = (minv, g, atb, a)
             if d:
                 k_up[d - 1] = (up @ _sym_dense(k_red, shape).reshape(shape[0], -1)).reshape(-1, len(_TRI), batch)
