@@ -271,6 +271,24 @@ def test_step1_lengths_are_mean_source_distances(walk):
         np.testing.assert_allclose(np.cross(setup.offsets[names.index(child)], composed), 0, atol=1e-9)
 
 
+def test_bandai_source_zero_length_end_sites_and_animated_hips(shared_file):
+    # Bandai's End Sites have zero offsets: Head's and the hands' only mapped descendants
+    # sit on them, so their rotations are invisible and must not be optimised (they would
+    # drift); Hips carries the trajectory in its position channels and keeps its OFFSET.
+    from usdmotion.io.bvh import read_bvh
+
+    bandai = frames(read_bvh(shared_file("bandai1/dataset-1_kick_normal_001.bvh")), 0, 16)
+    setup = prepare(bandai, remove=["Neck", "Shoulder_L"])
+    moved = {setup.rig.joint_names[j] for j in setup.rot_joints}
+    assert not moved & {"Head", "Hand_L", "Hand_R", "Toes_L", "Toes_R"}
+    assert {"Chest", "UpperArm_L", "LowerArm_L", "Foot_L"} <= moved
+    hips = setup.rig.joint_names.index("Hips")
+    np.testing.assert_array_equal(setup.offsets[hips], bandai.offsets[bandai.joint_index("Hips")])
+    # its per-frame translation is the exact source one
+    np.testing.assert_allclose(setup.translations[:, hips], bandai.joint_translations[:, bandai.joint_index("Hips")],
+                               atol=1e-9)
+
+
 # ----------------------------------------------------------------- methods, modes
 
 

@@ -179,9 +179,13 @@ def prepare(source: Motion, target: Motion | None = None, *, remove=(), add=(), 
             fallback = _mean_directions(derived, chains, source_of, positions, world_q_src, only_changed=not use_mean)
             if use_mean:
                 for j, direction in fallback.items():
-                    offsets[j] = direction * np.linalg.norm(offsets[j])
+                    if not rig.animated[j]:  # joints with per-frame translations keep their OFFSET
+                        offsets[j] = direction * np.linalg.norm(offsets[j])
         other = 1.0 if mode == "derived" else float(src_len.sum() / rest_len.sum()) if rest_len.sum() > 0 else 1.0
-        offsets = adapt_offsets(offsets, rig.parents, chains, src_len, other_scale=other, fallback_directions=fallback)
+        fixed = [k for k, (_, chain) in enumerate(chains) if rig.animated[chain[-1]]]  # per-frame translations
+        keep = [k for k in range(len(chains)) if k not in fixed]
+        offsets = adapt_offsets(offsets, rig.parents, [chains[k] for k in keep], src_len[keep], other_scale=other,
+                                fallback_directions=fallback)
     roles = _roles(rig, mapped_mask, mode, derived, offsets, local)
     translations = _translations(source, rig, derived, mode, offsets, positions, world_q_src, roles, targets)
     setup = Setup(rig, offsets, source_of, weights, targets, translations, roles["rot"], roles["trans"],
@@ -213,7 +217,11 @@ def _roles(rig: Rig, mapped_mask, mode, derived, offsets, local) -> dict:
     above_all = (anc | np.eye(rig.n_joints, dtype=bool))[:, mapped].all(axis=1)
     top = int(np.flatnonzero(above_all).max())  # deepest common ancestor-or-self (parents come first)
     carriers = np.flatnonzero(anc[:, top]) if mode == "target" else np.zeros(0, np.int64)
-    movable = anc[:, mapped].any(axis=1) & ~rig.end_sites
+    # a rotation is optimised when it moves a mapped joint: one below it at a distance
+    # (a zero-offset End Site sitting on the joint does not count)
+    rest = fk_arrays(_identity((rig.n_joints,)), offsets, rig.parents)[1]
+    far = np.linalg.norm(rest[None, mapped] - rest[:, None], axis=-1) > 1e-9 * max(1.0, float(np.abs(offsets).max()))
+    movable = (anc[:, mapped] & far).any(axis=1) & ~rig.end_sites
     movable[carriers] = False
     if local and mode == "derived":
         movable &= _local_joints(rig, derived, offsets, anc)
