@@ -18,7 +18,7 @@ from typing import Any
 from usdmotion.errors import InputError
 from usdmotion.resources import resource_path
 
-SCHEMA_NAMES = ("limits", "synthesis", "body-segments", "segments", "edit-pipeline")
+SCHEMA_NAMES = ("limits", "synthesis", "body-segments", "segments", "edit-pipeline", "jointmap", "rigprofile")
 
 
 @lru_cache(maxsize=None)

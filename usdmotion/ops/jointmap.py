@@ -1,0 +1,274 @@
+"""Joint maps: which source joint drives each target joint, and with what loss weight.
+
+A map comes from a JSON file (``schemas/jointmap.schema.json``), from two built-in rig
+profiles (``usdmotion/data/rigs/*.json``: canonical body points → a rig's joint names,
+so a map between any two known rigs is composed through the canonical names), or is
+made automatically:
+
+1. **same names**: target joints whose names exist in the source (same rig family);
+2. **rig profiles**: both skeletons recognised by a profile's ``signature``;
+3. **normalised names**: lower case, ``prefix:`` namespaces and non-alphanumerics
+   removed, ``left/right`` → ``l/r``.
+
+:func:`auto_map` reports what it could not map.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from dataclasses import dataclass, field
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+from usdmotion.errors import InputError
+from usdmotion.resources import resource_path
+
+
+class JointMapError(InputError):
+    """A joint map file is malformed or names joints the skeletons do not have."""
+
+
+@dataclass(frozen=True)
+class JointMap:
+    """Target joint name → source joint name (``None``: not compared), plus weights.
+
+    Attributes:
+        pairs: target name → source name or ``None``.
+        weights: target name → loss weight (missing: 1).
+        how: where the map came from (for reports).
+        path: the map file, or ``None``.
+        auto: map target joints that ``pairs`` does not list automatically.
+        profiles: ``(source_profile, target_profile)`` named by the file, or ``None``.
+    """
+
+    pairs: dict[str, str | None] = field(default_factory=dict)
+    weights: dict[str, float] = field(default_factory=dict)
+    how: str = "file"
+    path: str | None = None
+    auto: bool = False
+    profiles: tuple[str, str] | None = None
+
+
+# ----------------------------------------------------------------------------- files
+
+
+DATA = Path(__file__).resolve().parents[1] / "data"
+
+
+def _schema(name: str) -> dict:
+    return json.loads(resource_path("schemas", name).read_text("utf-8"))
+
+
+def _validate(doc, schema_name: str, path) -> None:
+    import jsonschema
+
+    validator = jsonschema.Draft202012Validator(_schema(schema_name))
+    errors = sorted(validator.iter_errors(doc), key=lambda e: list(e.absolute_path))
+    if errors:
+        error = errors[0]
+        where = "/".join(str(p) for p in error.absolute_path) or "top level"
+        message = error.message if len(error.message) < 160 else error.message[:157] + "..."
+        raise JointMapError(path, f"invalid joint map at {where}: {message}")
+
+
+def load_joint_map(path: str | Path) -> JointMap:
+    """Read and validate a joint map JSON file."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise JointMapError(path, "no such file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise JointMapError(path, f"cannot read: {exc}") from None
+    try:
+        doc = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise JointMapError(path, f"not valid JSON: {exc.msg}", exc.lineno, exc.colno) from None
+    _validate(doc, "jointmap.schema.json", path)
+    pairs: dict[str, str | None] = {}
+    weights: dict[str, float] = {}
+    for target, value in doc.get("joints", {}).items():
+        if isinstance(value, dict):
+            pairs[target] = value["source"]
+            if "weight" in value:
+                weights[target] = float(value["weight"])
+        else:
+            pairs[target] = value
+    weights.update({k: float(v) for k, v in doc.get("weights", {}).items()})
+    profiles = None
+    if "source_profile" in doc or "target_profile" in doc:
+        if not ("source_profile" in doc and "target_profile" in doc):
+            raise JointMapError(path, "give both source_profile and target_profile")
+        known = rig_profiles()
+        for key in ("source_profile", "target_profile"):
+            if doc[key] not in known:
+                raise JointMapError(path, f"{key}: unknown rig profile {doc[key]!r} "
+                                          f"(known: {', '.join(sorted(known))})")
+        profiles = (doc["source_profile"], doc["target_profile"])
+    auto = bool(doc.get("auto", False))
+    return JointMap(pairs, weights, "file", str(path), auto, profiles)
+
+
+# -------------------------------------------------------------------------- profiles
+
+
+@lru_cache(maxsize=1)
+def rig_profiles() -> dict[str, dict]:
+    """Built-in rig profiles by name (validated against ``rigprofile.schema.json``)."""
+    out = {}
+    for entry in sorted((DATA / "rigs").glob("*.json")):
+        if entry.name.endswith(".json"):
+            doc = json.loads(entry.read_text("utf-8"))
+            _validate(doc, "rigprofile.schema.json", f"usdmotion/data/rigs/{entry.name}")
+            out[doc["name"]] = doc
+    return out
+
+
+def strip_namespace(name: str) -> str:
+    """``"mixamorig:Hips"`` → ``"Hips"``."""
+    return name.rsplit(":", 1)[-1]
+
+
+def _lookup(names) -> dict[str, str]:
+    """Namespace-free name → actual name (first one wins)."""
+    table: dict[str, str] = {}
+    for n in names:
+        table.setdefault(strip_namespace(n), n)
+    return table
+
+
+def profile_joints(profile: dict, names) -> dict[str, str] | None:
+    """Canonical point → joint name of ``names`` if the skeleton fits ``profile``, else ``None``."""
+    table = _lookup(names)
+    if any(s not in table for s in profile["signature"]):
+        return None
+    resolved = {}
+    for point, candidates in profile["joints"].items():
+        candidates = [candidates] if isinstance(candidates, str) else candidates
+        hit = next((table[c] for c in candidates if c in table), None)
+        if hit is not None:
+            resolved[point] = hit
+        elif point not in profile["optional"]:
+            return None
+    return resolved
+
+
+def detect_profile(names) -> str | None:
+    """Name of the built-in profile a skeleton fits (most points resolved), or ``None``."""
+    best, best_count = None, 0
+    for name, profile in rig_profiles().items():
+        resolved = profile_joints(profile, names)
+        if resolved is not None and len(resolved) > best_count:
+            best, best_count = name, len(resolved)
+    return best
+
+
+def profile_map(source_profile: str, target_profile: str, source_names, target_names) -> dict[str, str]:
+    """Target name → source name through the canonical points of two profiles."""
+    profiles = rig_profiles()
+    src = profile_joints(profiles[source_profile], source_names) or {}
+    tgt = profile_joints(profiles[target_profile], target_names) or {}
+    return {tgt[p]: src[p] for p in tgt if p in src}
+
+
+# -------------------------------------------------------------------------- auto map
+
+_TOKENS = re.compile(r"[A-Z]+(?![a-z])|[A-Z]?[a-z]+|[0-9]+")
+_SIDES = {"left": "l", "l": "l", "right": "r", "r": "r"}
+
+
+def normalise_name(name: str) -> str:
+    """Comparable form of a joint name: no namespace, lower case, alphanumerics only, and
+    a first or last word ``left``/``l``/``right``/``r`` moved to the front as ``l``/``r``
+    (``LeftUpLeg``, ``upleg_L``, ``lUpLeg`` → ``lupleg``)."""
+    tokens = [t.lower() for t in _TOKENS.findall(strip_namespace(name))]
+    side = ""
+    for k in (0, -1):
+        if len(tokens) > 1 and tokens[k] in _SIDES:
+            side = _SIDES[tokens.pop(k)]
+            break
+    return side + "".join(tokens)
+
+
+def auto_map(source_names, target_names, target_end_sites=None) -> JointMap:
+    """Map target joints to source joints automatically (see module docstring)."""
+    source_names, target_names = list(source_names), list(target_names)
+    ends = np.zeros(len(target_names), bool) if target_end_sites is None else np.asarray(target_end_sites, bool)
+    real = [n for n, e in zip(target_names, ends) if not e]
+    same = {n: n for n in target_names if n in set(source_names)}
+    if real and sum(n in same for n in real) >= 0.6 * len(real):
+        return JointMap(same, {}, "same names")
+    sp, tp = detect_profile(source_names), detect_profile(target_names)
+    if sp and tp:
+        return JointMap(profile_map(sp, tp, source_names, target_names), {}, f"rig profiles {sp} -> {tp}",
+                        profiles=(sp, tp))
+    by_key: dict[str, str] = {}
+    for n in source_names:
+        by_key.setdefault(normalise_name(n), n)
+    pairs = {n: by_key[normalise_name(n)] for n in target_names if normalise_name(n) in by_key}
+    return JointMap(pairs, {}, "normalised names")
+
+
+def resolve_map(joint_map: JointMap | None, source_names, target_names, target_end_sites=None,
+                default: dict[str, str | None] | None = None) -> tuple[np.ndarray, np.ndarray, JointMap]:
+    """Source index ``(J_t,)`` (-1: not compared) and weight ``(J_t,)`` per target joint.
+
+    Precedence, lowest first: ``default`` (the identity of a rig derived from the source)
+    or, without it, the automatic map (when there is no map file or it sets ``auto``);
+    then the file's rig profiles; then the file's listed joints. Raises
+    :class:`JointMapError` for names the skeletons do not have.
+    """
+    source_names, target_names = tuple(source_names), tuple(target_names)
+    where = None if joint_map is None else joint_map.path
+    pairs: dict[str, str | None] = {}
+    how = []
+    if default is not None:
+        pairs.update(default)
+        how.append("identity (target derived from the source)")
+    elif joint_map is None or joint_map.auto:
+        automatic = auto_map(source_names, target_names, target_end_sites)
+        pairs.update(automatic.pairs)
+        how.append(automatic.how)
+    if joint_map is not None:
+        _check_names(joint_map, source_names, target_names)
+        if joint_map.profiles is not None:
+            sp, tp = joint_map.profiles
+            for profile, names, side in ((sp, source_names, "source"), (tp, target_names, "target")):
+                if profile_joints(rig_profiles()[profile], names) is None:
+                    raise JointMapError(where, f"the {side} skeleton does not fit rig profile {profile!r}")
+            pairs.update(profile_map(sp, tp, source_names, target_names))
+            how.append(f"rig profiles {sp} -> {tp}")
+        pairs.update(joint_map.pairs)
+        if joint_map.path:
+            how.append(f"map file {joint_map.path}")
+    source_index = {n: i for i, n in enumerate(source_names)}
+    src = np.array([source_index[pairs[n]] if pairs.get(n) is not None else -1 for n in target_names], np.int64)
+    weights = np.ones(len(target_names))
+    if joint_map is not None:
+        for name, w in joint_map.weights.items():
+            if name not in target_names:
+                raise JointMapError(where, f"weights: no target joint named {name!r}{_close(name, target_names)}")
+            weights[target_names.index(name)] = w
+    resolved = JointMap({n: pairs.get(n) for n in target_names}, {n: float(w) for n, w in zip(target_names, weights)},
+                        " + ".join(how) or "empty", where)
+    return src, weights, resolved
+
+
+def _close(name: str, names) -> str:
+    import difflib
+
+    close = difflib.get_close_matches(name, list(names), n=3)
+    return f" (did you mean {', '.join(close)}?)" if close else ""
+
+
+def _check_names(joint_map: JointMap, source_names, target_names) -> None:
+    for target, source in joint_map.pairs.items():
+        if target not in target_names:
+            raise JointMapError(joint_map.path,
+                                f"joints: no target joint named {target!r}{_close(target, target_names)}")
+        if source is not None and source not in source_names:
+            raise JointMapError(joint_map.path, f"joints: {target!r} -> no source joint named {source!r}"
+                                                f"{_close(source, source_names)}")

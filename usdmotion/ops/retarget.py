@@ -1,0 +1,477 @@
+"""Retargeting: move a motion onto another joint hierarchy, keeping global joint
+positions as close as possible to the original (ALGORITHMS.md §1).
+
+Pipeline (``retarget``):
+
+1. **Target rig** — from a BVH/USD file, or derived from the source by removing joints
+   (children re-parented to the parent) and adding joints (:mod:`usdmotion.ops.hierarchy`).
+2. **Joint map** — which source joint each target joint is compared with
+   (:mod:`usdmotion.ops.jointmap`). Across rigs the source positions are first brought
+   into the target's frame: up axis converted, then scaled (``scale="units"``: the
+   unit ratio, physical size kept; ``"auto"``: to the target's size; or a number).
+3. **Step 1, offsets** — each mapped bone's length = the mean over frames of the source
+   distance between the joint and its nearest mapped ancestor. Direction: the target
+   rig's (rigs from files), or for rigs derived from the source the mean direction of
+   the source bone in its new parent's frame (``directions="mean"``, default) or the
+   rest-pose composition (``"rest"``, the paper's "direction kept").
+4. **Step 2, rotations** — initial guess (copied/composed source rotations or "aim each
+   bone at its source direction"), then :mod:`usdmotion.ops.retarget_solve` (LM by
+   default, the paper's Adam as reference) over all frames at once.
+
+The loss compares, per frame, the world positions of the mapped target joints with the
+(converted, scaled) world positions of their source joints, in target units squared.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from usdmotion.kinematics import fk_arrays, world_rotations_positions
+from usdmotion.motion import POSITION_CHANNELS, Motion
+from usdmotion.ops.hierarchy import (Rig, RetargetError, UnitsMismatchError, adapt_offsets, ancestor_matrix,
+                                     derive_rig, mapped_chains, rig_from_motion, source_bone_lengths)
+from usdmotion.ops.jointmap import JointMap, resolve_map
+from usdmotion.rotations import quat_between, quat_conjugate, quat_mul, quat_rotate
+
+METHODS = ("lm", "adam")
+#: Sizes (target / source, after unit conversion) outside this range mean the units disagree.
+SIZE_RATIO_RANGE = (0.5, 2.0)
+
+
+@dataclass(frozen=True)
+class RetargetResult:
+    """The retargeted motion and a JSON-ready report (see :func:`retarget`)."""
+
+    motion: Motion
+    report: dict = field(repr=False)
+
+
+@dataclass(eq=False)
+class Setup:
+    """A retargeting problem in arrays (NumPy, float64). Built by :func:`prepare`."""
+
+    rig: Rig                    # target rig (offsets as given / rest-composed)
+    offsets: np.ndarray         # (J, 3) after step 1
+    source_of: np.ndarray       # (J,) source joint per target joint, -1 = not compared
+    weights: np.ndarray         # (J,)
+    targets: np.ndarray         # (F, J, 3) source positions per target joint (target frame & units); 0 if unmapped
+    translations: np.ndarray    # (F, J, 3) local translations (root: world) before solving
+    rot_joints: np.ndarray      # joints whose rotation is optimised
+    trans_joints: np.ndarray    # joints whose translation is optimised
+    anchor: int                 # joint whose translation carries the world position
+    top: int                    # deepest joint above (or at) every mapped joint
+    inits: dict                 # name -> (F, J, 4) initial local rotations
+    scale: float
+    joint_map: JointMap
+    derived: object | None      # DerivedRig when the target was derived from the source
+    mode: str                   # "derived" or "target"
+
+    @property
+    def mapped(self) -> np.ndarray:
+        return np.flatnonzero((self.source_of >= 0) & (self.weights > 0))
+
+
+def _identity(shape) -> np.ndarray:
+    q = np.zeros(tuple(shape) + (4,))
+    q[..., 0] = 1.0
+    return q
+
+
+def _up_rotation(source_up: str, target_up: str) -> np.ndarray | None:
+    """Quaternion taking source-frame vectors to the target frame (±90° about X), or None."""
+    if source_up == target_up:
+        return None
+    half = np.sqrt(0.5)
+    return np.array([half, half, 0.0, 0.0]) if target_up == "Z" else np.array([half, -half, 0.0, 0.0])
+
+
+def frame_losses(offsets_or_t: np.ndarray, rotations: np.ndarray, parents: np.ndarray, mapped: np.ndarray,
+                 targets: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """Per-frame loss ``(F,)``: ``Σ_m w_m ‖p_m − target_m‖²`` with NumPy float64 FK.
+
+    ``offsets_or_t`` is ``(F, J, 3)`` local translations (root: world position);
+    ``targets`` ``(F, J, 3)`` indexed by target joint.
+    """
+    _, world_p = fk_arrays(rotations, offsets_or_t, parents)
+    d = world_p[:, mapped] - targets[:, mapped]
+    return np.einsum("fmk,fmk,m->f", d, d, weights[mapped])
+
+
+# ------------------------------------------------------------------------- setup
+
+
+def _target(source: Motion, target: Motion | None, remove, add, target_path, source_path):
+    if target is None:
+        derived = derive_rig(rig_from_motion(source, source_path or "source"), remove, add)
+        return derived.rig, derived, "derived"
+    derived = derive_rig(rig_from_motion(target, target_path or "target"), remove, add) if (remove or add) else None
+    return (derived.rig if derived else rig_from_motion(target, target_path or "target")), derived, "target"
+
+
+def _chain_sizes(rig: Rig, mapped_mask: np.ndarray, source_of: np.ndarray, positions: np.ndarray):
+    chains = mapped_chains(rig.parents, mapped_mask)
+    lengths = source_bone_lengths(positions, chains, source_of)
+    rest = np.array([np.linalg.norm(rig.offsets[c].sum(axis=0)) for _, c in chains]) if chains else np.zeros(0)
+    return chains, lengths, rest
+
+
+def prepare(source: Motion, target: Motion | None = None, *, remove=(), add=(), joint_map: JointMap | None = None,
+            lengths: str = "source", directions: str = "auto", scale="units", local: bool = False,
+            target_path: str | None = None, source_path: str | None = None) -> Setup:
+    """Build the arrays of a retargeting problem (steps 1 and the initial guesses)."""
+    if lengths not in ("source", "target"):
+        raise RetargetError(f"lengths must be 'source' or 'target', got {lengths!r}")
+    if directions not in ("auto", "mean", "rest"):
+        raise RetargetError(f"directions must be 'auto', 'mean' or 'rest', got {directions!r}")
+    rig, derived, mode = _target(source, target, remove, add, target_path, source_path)
+    if mode == "derived":
+        default = {rig.joint_names[j]: (source.joint_names[o] if o >= 0 else None)
+                   for j, o in enumerate(derived.origin)}
+        source_of, weights, jmap = resolve_map(joint_map, source.joint_names, rig.joint_names, rig.end_sites, default)
+    else:
+        if directions == "mean":
+            raise RetargetError("--directions mean needs a target derived from the source (--remove/--add); "
+                                "a target rig keeps its own bone directions")
+        source_of, weights, jmap = resolve_map(joint_map, source.joint_names, rig.joint_names, rig.end_sites)
+    mapped_mask = (source_of >= 0) & (weights > 0)
+    if mapped_mask.sum() < 2:
+        raise RetargetError(f"only {int(mapped_mask.sum())} target joint(s) could be matched with source joints "
+                            f"({jmap.how}); write a joint map (docs/retarget.md) and pass --map")
+    world_q_src, positions = world_rotations_positions(source)
+    up = _up_rotation(source.up_axis, rig.up_axis)
+    if up is not None:
+        positions = quat_rotate(up, positions)
+        world_q_src = quat_mul(up, world_q_src)
+    units = source.meters_per_unit / rig.meters_per_unit
+    chains, src_len, rest_len = _chain_sizes(rig, mapped_mask, source_of, positions)
+    ratio = float(rest_len.sum() / (units * src_len.sum())) if src_len.sum() > 0 and rest_len.sum() > 0 else 1.0
+    if mode == "derived":
+        if scale not in ("units", "auto", 1, 1.0):
+            raise RetargetError("--scale applies to --target only (a derived rig keeps the source's units)")
+        s = 1.0
+    elif scale == "units":
+        s = units
+        lo, hi = SIZE_RATIO_RANGE
+        if not lo <= ratio <= hi:
+            raise UnitsMismatchError(
+                f"{rig.path}: the target skeleton is {ratio:.3g}x the size of the source after converting units "
+                f"({source.meters_per_unit:g} -> {rig.meters_per_unit:g} m/unit): the units look mismatched; state "
+                "them with --units / --target-units, or pass --scale auto to fit the source to the target's size")
+    elif scale == "auto":
+        s = units * ratio
+    else:
+        s = float(scale)
+        if not (np.isfinite(s) and s > 0):
+            raise RetargetError(f"--scale must be 'units', 'auto' or a positive number, got {scale!r}")
+    positions = positions * s
+    src_len = src_len * s
+    targets = np.zeros((source.n_frames, rig.n_joints, 3))
+    targets[:, mapped_mask] = positions[:, source_of[mapped_mask]]
+    # step 1: offsets
+    offsets = rig.offsets.copy()
+    if lengths == "source":
+        fallback = None
+        use_mean = mode == "derived" and directions in ("auto", "mean")
+        if mode == "derived":
+            fallback = _mean_directions(derived, chains, source_of, positions, world_q_src, only_changed=not use_mean)
+            if use_mean:
+                for j, direction in fallback.items():
+                    if not rig.animated[j]:  # joints with per-frame translations keep their OFFSET
+                        offsets[j] = direction * np.linalg.norm(offsets[j])
+        other = 1.0 if mode == "derived" else float(src_len.sum() / rest_len.sum()) if rest_len.sum() > 0 else 1.0
+        fixed = [k for k, (_, chain) in enumerate(chains) if rig.animated[chain[-1]]]  # per-frame translations
+        keep = [k for k in range(len(chains)) if k not in fixed]
+        offsets = adapt_offsets(offsets, rig.parents, [chains[k] for k in keep], src_len[keep], other_scale=other,
+                                fallback_directions=fallback)
+    roles = _roles(rig, mapped_mask, mode, derived, offsets, local)
+    translations = _translations(source, rig, derived, mode, offsets, positions, world_q_src, roles, targets)
+    setup = Setup(rig, offsets, source_of, weights, targets, translations, roles["rot"], roles["trans"],
+                  roles["anchor"], roles["top"], {}, s, jmap, derived, mode)
+    setup.inits = _initial_guesses(source, setup, up)
+    return setup
+
+
+def _mean_directions(derived, chains, source_of, positions, world_q_src, only_changed: bool) -> dict:
+    """Unit mean direction, in the new parent's source frame, of every re-parented bone."""
+    out = {}
+    for a, chain in chains:
+        j = chain[-1]
+        if len(chain) != 1 or len(derived.compose[j]) < 2:
+            continue  # bones with an unchanged parent keep their rest direction
+        bone = positions[:, source_of[j]] - positions[:, source_of[a]]
+        v = quat_rotate(quat_conjugate(world_q_src[:, source_of[a]]), bone)
+        mean = v.mean(axis=0)
+        norm = np.linalg.norm(mean)
+        if norm > 1e-12 and (not only_changed or np.linalg.norm(derived.rig.offsets[j]) <= 1e-12):
+            out[j] = mean / norm
+    return out
+
+
+def _roles(rig: Rig, mapped_mask, mode, derived, offsets, local) -> dict:
+    """Which joints are optimised (rotation / translation) and which carries the position."""
+    anc = ancestor_matrix(rig.parents)
+    mapped = np.flatnonzero(mapped_mask)
+    above_all = (anc | np.eye(rig.n_joints, dtype=bool))[:, mapped].all(axis=1)
+    top = int(np.flatnonzero(above_all).max())  # deepest common ancestor-or-self (parents come first)
+    carriers = np.flatnonzero(anc[:, top]) if mode == "target" else np.zeros(0, np.int64)
+    # a rotation is optimised when it moves a mapped joint: one below it at a distance
+    # (a zero-offset End Site sitting on the joint does not count)
+    rest = fk_arrays(_identity((rig.n_joints,)), offsets, rig.parents)[1]
+    far = np.linalg.norm(rest[None, mapped] - rest[:, None], axis=-1) > 1e-9 * max(1.0, float(np.abs(offsets).max()))
+    movable = (anc[:, mapped] & far).any(axis=1) & ~rig.end_sites
+    movable[carriers] = False
+    if local and mode == "derived":
+        movable &= _local_joints(rig, derived, offsets, anc)
+    trans = np.zeros(0, np.int64)
+    anchor = 0
+    if mode == "target":
+        has_position = rig.channels is not None and any(c in POSITION_CHANNELS for c in rig.channels[top])
+        anchor = int(top) if top == 0 or has_position or rig.animated[top] else 0
+        trans = np.array([anchor])
+    return {"rot": np.flatnonzero(movable), "trans": trans, "anchor": anchor, "carriers": carriers, "top": int(top),
+            "mapped": mapped}
+
+
+def _local_joints(rig: Rig, derived, offsets, anc) -> np.ndarray:
+    """Local mode: ancestors-or-self of the parents of changed joints, and their children."""
+    changed = np.array([len(c) != 1 for c in derived.compose])
+    changed |= np.linalg.norm(offsets - rig.offsets, axis=1) > 1e-9 * max(1.0, float(np.abs(rig.offsets).max()))
+    changed[0] = False
+    parents = rig.parents[changed]
+    core = np.zeros(rig.n_joints, bool)
+    core[parents] = True
+    core |= anc[:, parents].any(axis=1)
+    out = core.copy()
+    out[1:] |= core[rig.parents[1:]]
+    return out
+
+
+def _translations(source, rig, derived, mode, offsets, positions, world_q_src, roles, targets) -> np.ndarray:
+    """Local translations ``(F, J, 3)`` (root: world position) before solving.
+
+    Derived rigs: the source root trajectory, and the exact relative position for joints
+    whose position channels move. Rigs from files: the anchor is placed so the top mapped
+    joint sits on its target (the joints above it keep identity rotations).
+    """
+    t = np.broadcast_to(offsets, (source.n_frames,) + offsets.shape).copy()
+    if mode == "derived":
+        t[:, 0] = positions[:, derived.origin[0]]
+        for j in np.flatnonzero(rig.animated):
+            p = rig.parents[j]
+            o, op = derived.origin[j], derived.origin[p]
+            t[:, j] = quat_rotate(quat_conjugate(world_q_src[:, op]), positions[:, o] - positions[:, op])
+    else:
+        rest = fk_arrays(_identity((rig.n_joints,)), offsets, rig.parents)[1]
+        top, anchor = roles["top"], roles["anchor"]
+        mapped = roles["mapped"]
+        if top in mapped:
+            place = targets[:, top] - rest[top]
+        else:  # an unmapped common ancestor: match the centroids, ignoring rotation
+            place = targets[:, mapped].mean(axis=1) - rest[mapped].mean(axis=0)
+        t[:, anchor] = offsets[anchor] + place
+    return t
+
+
+# ----------------------------------------------------------------- initial guesses
+
+
+def _initial_guesses(source: Motion, setup: Setup, up) -> dict:
+    rig = setup.rig
+    inits = {}
+    copied = _identity((source.n_frames, rig.n_joints))
+    origin = setup.derived.origin if setup.mode == "derived" else setup.source_of
+    has = origin >= 0
+    copied[:, has] = source.rotations[:, origin[has]]
+    if setup.mode == "derived":
+        inits["copy"] = copied
+        composed = _identity((source.n_frames, rig.n_joints))
+        for j, chain in enumerate(setup.derived.compose):
+            if chain:
+                q = source.rotations[:, chain[0]]
+                for c in chain[1:]:
+                    q = quat_mul(q, source.rotations[:, c])
+                composed[:, j] = q
+        inits["compose"] = composed
+    else:
+        if up is not None:
+            copied[:, setup.anchor] = quat_mul(up, copied[:, setup.anchor])
+        inits["copy"] = copied
+    inits["aim"] = aim_init(setup)
+    return inits
+
+
+def _rays(rig: Rig, offsets: np.ndarray, mapped_mask: np.ndarray) -> list[list[tuple[int, np.ndarray]]]:
+    """Per joint: ``(d, rest vector from the joint to d)`` for its nearest mapped descendants."""
+    children = [[] for _ in range(rig.n_joints)]
+    for j in range(1, rig.n_joints):
+        children[rig.parents[j]].append(j)
+    rays = []
+    for j in range(rig.n_joints):
+        found, stack = [], [(c, offsets[c]) for c in children[j]]
+        while stack:
+            c, v = stack.pop()
+            if mapped_mask[c]:
+                if np.linalg.norm(v) > 1e-9:
+                    found.append((c, v))
+            else:
+                stack.extend((g, v + offsets[g]) for g in children[c])
+        rays.append(found)
+    return rays
+
+
+def aim_init(setup: Setup) -> np.ndarray:
+    """Heuristic rotations ``(F, J, 4)``: every optimised joint aims its rest bone(s) at the
+    source direction(s) of its nearest mapped descendants (one: shortest swing from the
+    parent's frame; several: least-squares rotation, Kabsch), joint by joint from the root,
+    all frames at once."""
+    rig, offsets = setup.rig, setup.offsets
+    n_frames = setup.targets.shape[0]
+    mapped_mask = np.zeros(rig.n_joints, bool)
+    mapped_mask[setup.mapped] = True
+    rays = _rays(rig, offsets, mapped_mask)
+    optimised = np.zeros(rig.n_joints, bool)
+    optimised[setup.rot_joints] = True
+    local = _identity((n_frames, rig.n_joints))
+    world_q = _identity((n_frames, rig.n_joints))
+    world_p = np.zeros((n_frames, rig.n_joints, 3))
+    for j in range(rig.n_joints):
+        p = rig.parents[j]
+        parent_q = world_q[:, p] if p >= 0 else _identity((n_frames,))
+        parent_p = world_p[:, p] if p >= 0 else np.zeros((n_frames, 3))
+        world_p[:, j] = parent_p + quat_rotate(parent_q, setup.translations[:, j])
+        if optimised[j] and rays[j]:
+            local[:, j] = quat_mul(quat_conjugate(parent_q), _aim(parent_q, world_p[:, j], rays[j], setup.targets))
+        world_q[:, j] = quat_mul(parent_q, local[:, j])
+    return local
+
+
+def _aim(parent_q, origin, rays, targets) -> np.ndarray:
+    """World rotation ``(F, 4)`` aiming rest vectors (joint frame) at target directions."""
+    from usdmotion.rotations import matrix_to_quat
+
+    u = np.stack([v for _, v in rays])  # (R, 3) joint frame
+    v = np.stack([targets[:, d] - origin for d, _ in rays], axis=1)  # (F, R, 3) world
+    carried = quat_rotate(parent_q[:, None], u[None])  # rest vectors in the world, local rotation = identity
+    swing = quat_mul(quat_between(carried.sum(axis=1), v.sum(axis=1)), parent_q)
+    if len(rays) < 2:
+        return swing
+    h = np.einsum("frk,rl->fkl", v, u)  # Σ v uᵀ
+    w_, s, vt = np.linalg.svd(h)
+    d = np.sign(np.linalg.det(w_ @ vt))
+    fix = np.ones((len(d), 3))
+    fix[:, 2] = d
+    kabsch = matrix_to_quat(w_ @ (fix[:, :, None] * vt))
+    planar = s[:, 1] > 1e-6 * np.maximum(s[:, 0], 1e-300)
+    return np.where(planar[:, None], kabsch, swing)
+
+
+# ------------------------------------------------------------------------ retarget
+
+
+def _choose_init(setup: Setup, init: str, method: str) -> str:
+    if init != "auto":
+        if init not in setup.inits:
+            choices = ", ".join(["auto", *setup.inits])
+            raise RetargetError(f"init {init!r} is not available here (choose from {choices})")
+        return init
+    if setup.mode == "derived":
+        return "copy" if method == "adam" else "compose"
+    losses = {name: float(frame_losses(setup.translations, q, setup.rig.parents, setup.mapped, setup.targets,
+                                       setup.weights).sum()) for name, q in setup.inits.items()}
+    return min(losses, key=losses.get)  # one choice for the whole take keeps twists continuous
+
+
+def _problem(setup: Setup):
+    from usdmotion.io.bvh import rotation_order
+    from usdmotion.ops.retarget_solve import Problem
+
+    channels = setup.rig.channels
+    orders = tuple(rotation_order(channels[j]) if channels is not None and channels[j] else "ZXY"
+                   for j in setup.rot_joints)
+    mapped = setup.mapped
+    return Problem(setup.rig.parents, mapped, setup.weights[mapped], setup.rot_joints, setup.trans_joints, orders)
+
+
+def retarget(source: Motion, target: Motion | None = None, *, remove=(), add=(), joint_map: JointMap | None = None,
+             method: str = "lm", iterations: int | None = None, lengths: str = "source", directions: str = "auto",
+             scale="units", init: str = "auto", local: bool = False, source_path: str | None = None,
+             target_path: str | None = None, progress=None) -> RetargetResult:
+    """Retarget ``source`` onto ``target`` (a skeleton; its animation is ignored) or onto
+    the source's own skeleton with joints removed/added.
+
+    Args:
+        source: the motion to transfer.
+        target: the target skeleton, or ``None`` to derive it from the source.
+        remove: joint names to remove (children are re-parented to the parent).
+        add: :class:`usdmotion.ops.hierarchy.AddSpec` s of joints to add.
+        joint_map: target → source joint map (default: identity for derived rigs,
+            automatic otherwise).
+        method: ``"lm"`` (default) or ``"adam"`` (the paper's reference).
+        iterations: LM's maximum (default 100; it stops once every frame has converged) or
+            Adam's iteration count (default 500).
+        lengths: ``"source"`` (step 1: mean source bone lengths) or ``"target"`` (keep).
+        directions: ``"auto"``/``"mean"``/``"rest"`` for derived rigs (see module doc).
+        scale: ``"units"``, ``"auto"`` or a number (targets from files only).
+        init: ``"auto"``, ``"copy"``, ``"compose"`` (derived rigs) or ``"aim"``.
+        local: optimise only joints around changed bones (derived rigs).
+        source_path, target_path: file names for messages and the report.
+        progress: optional ``callable(frames_done)`` called after every chunk.
+
+    Returns:
+        :class:`RetargetResult` with the new motion (target skeleton, channel layout,
+        units and up axis; the source's frame rate) and the report described in
+        ``docs/retarget.md``.
+    """
+    from usdmotion.ops import retarget_report
+    from usdmotion.ops.retarget_solve import solve
+
+    start = time.perf_counter()
+    if method not in METHODS:
+        raise RetargetError(f"unknown method {method!r} (choose from {', '.join(METHODS)})")
+    if iterations is not None and not (isinstance(iterations, int) and 0 <= iterations <= 100_000):
+        raise RetargetError(f"iterations must be an integer in 0..100000, got {iterations!r}")
+    if source.n_frames == 0:
+        raise RetargetError(f"{source_path or 'source'}: the motion has no frames")
+    setup = prepare(source, target, remove=remove, add=add, joint_map=joint_map, lengths=lengths,
+                    directions=directions, scale=scale, local=local, target_path=target_path,
+                    source_path=source_path)
+    init_name = _choose_init(setup, init, method)
+    q0 = setup.inits[init_name]
+    centre = setup.translations[:, setup.anchor].copy()
+    t0 = setup.translations.copy()
+    t0[:, setup.anchor] -= centre
+    targets = setup.targets[:, setup.mapped] - centre[:, None]
+    prepared = time.perf_counter()
+    solution = solve(_problem(setup), q0, t0, targets, method=method, iterations=iterations, progress=progress)
+    q, t = solution.q, solution.t
+    t[:, setup.anchor] += centre
+    # keep, per frame, the better of the initial guess and the float32 solution in float64
+    args = (setup.rig.parents, setup.mapped, setup.targets, setup.weights)
+    worse = frame_losses(t, q, *args) > frame_losses(setup.translations, q0, *args)
+    q[worse], t[worse] = q0[worse], setup.translations[worse]
+    motion = _output_motion(source, setup, q, t)
+    report = retarget_report.build(source, setup, motion, q0, init_name, method, iterations,
+                                   {"setup": prepared - start, "compile": solution.compile_s, "solve": solution.run_s},
+                                   source_path, target_path)
+    report["chunks"] = {"frames_per_call": solution.chunk, "calls": solution.calls}
+    report["iterations_run"] = solution.iterations
+    report["time_s"]["total"] = time.perf_counter() - start
+    return RetargetResult(motion, report)
+
+
+def _output_motion(source: Motion, setup: Setup, q: np.ndarray, t: np.ndarray) -> Motion:
+    rig = setup.rig
+    moving = rig.animated.copy()
+    moving[setup.trans_joints] = True
+    moving[0] = False
+    joint_translations = None
+    if moving.any():
+        joint_translations = np.broadcast_to(setup.offsets, t.shape).copy()
+        joint_translations[:, moving] = t[:, moving]
+    return Motion(joint_names=rig.joint_names, parents=rig.parents, offsets=setup.offsets, rotations=q,
+                  root_translation=t[:, 0], fps=source.fps, joint_translations=joint_translations,
+                  end_sites=rig.end_sites, meters_per_unit=rig.meters_per_unit, up_axis=rig.up_axis,
+                  channels=rig.channels, root_offset=rig.root_offset)

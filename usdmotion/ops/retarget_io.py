@@ -1,0 +1,79 @@
+"""Retargeting from files to files (what ``usdmotion retarget`` runs): options as the
+command line gives them, output written atomically, a one-line summary returned."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from usdmotion.errors import OutputError
+from usdmotion.motion import Motion
+from usdmotion.ops.hierarchy import RetargetError, parse_add
+
+
+def parse_scale(text) -> str | float:
+    """``"units"``, ``"auto"`` or a positive number from ``--scale``."""
+    if isinstance(text, (int, float)):
+        value = float(text)
+    elif str(text).strip().lower() in ("units", "auto"):
+        return str(text).strip().lower()
+    else:
+        try:
+            value = float(text)
+        except ValueError:
+            raise RetargetError(f"--scale must be 'units', 'auto' or a positive number, got {text!r}") from None
+    if not (value > 0 and value < float("inf")):
+        raise RetargetError(f"--scale must be a positive number, got {text!r}")
+    return value
+
+
+def retarget_files(source: Motion, source_path: Path, output: Path, target: Motion | None = None,
+                   target_path: Path | None = None, remove=(), add=(), map_path: Path | None = None,
+                   method: str = "lm", iterations: int | None = None, lengths: str = "source",
+                   directions: str = "auto", scale="units", init: str = "auto", local: bool = False,
+                   report_path: Path | None = None, progress=None) -> str:
+    """Retarget, write ``output`` (BVH or USD by extension) and the JSON report; return a summary line.
+
+    Nothing is written when anything fails (checks run before the optimiser).
+    """
+    from usdmotion.io import BVH_EXTENSIONS, USD_EXTENSIONS, write_motion
+    from usdmotion.io.atomic import atomic_output
+    from usdmotion.ops.jointmap import load_joint_map
+    from usdmotion.ops.retarget import retarget
+
+    output = Path(output)
+    if output.suffix.lower() not in BVH_EXTENSIONS + USD_EXTENSIONS:
+        raise OutputError(f"{output}: unknown output format {output.suffix!r} (use .bvh, {', '.join(USD_EXTENSIONS)})")
+    inputs = [Path(source_path)] + ([Path(target_path)] if target_path else []) + ([Path(map_path)] if map_path else [])
+    for path in [output] + ([Path(report_path)] if report_path else []):
+        if any(path.resolve() == p.resolve() for p in inputs):
+            raise OutputError(f"{path}: output would overwrite an input")
+        if not path.parent.is_dir():
+            raise OutputError(f"{path}: folder {path.parent} does not exist")
+    if target is None and not remove and not add:
+        raise RetargetError("give --target, or joints to --remove / --add")
+    joint_map = load_joint_map(map_path) if map_path else None
+    specs = [parse_add(spec) for spec in add]
+    result = retarget(source, target, remove=remove, add=specs, joint_map=joint_map, method=method,
+                      iterations=iterations, lengths=lengths, directions=directions, scale=parse_scale(scale),
+                      init=init, local=local, source_path=str(source_path),
+                      target_path=None if target_path is None else str(target_path), progress=progress)
+    write_motion(result.motion, output)
+    rep = result.report
+    if report_path:
+        with atomic_output(Path(report_path)) as tmp:
+            tmp.write_text(json.dumps(rep, indent=2) + "\n", encoding="utf-8")
+    return summary_line(result.motion, rep, output)
+
+
+def summary_line(motion: Motion, rep: dict, output: Path) -> str:
+    """``wrote OUT: ... loss A -> B ...`` (one line)."""
+    loss = rep["loss"]
+    ratio = (f" = {100 * loss['final_over_copied']:.3g} % of copied rotations ({loss['copied']['total']:.6g})"
+             if "final_over_copied" in loss else f" = {100 * loss['final_over_initial']:.3g} % of the initial guess")
+    worst = max(rep["per_joint_rms"].items(), key=lambda kv: kv[1])
+    return (f"wrote {output}: {rep['target_joints_without_end_sites']} joints, {rep['frames']} frames; "
+            f"loss {loss['initial']['total']:.6g} -> {loss['final']['total']:.6g}{ratio}; per-joint RMS "
+            f"{loss['final']['rms']:.4g} (worst {worst[0]} {worst[1]:.4g}) units; {rep['method']} on "
+            f"{rep['device']}, {rep['time_s']['solve']:.2f} s ({rep['frames_per_second_solve']:.0f} frames/s) + "
+            f"{rep['time_s']['compile']:.1f} s compiling")

@@ -1,0 +1,517 @@
+"""JAX solvers for step 2 of retargeting (rotations), all frames at once.
+
+This is the only module of the retargeting code that imports JAX. It works in
+**float32** (JAX's default, what GPUs are fast at) on whatever device JAX picks; inputs
+are centred per frame on the source root so float32 keeps ~1e-7 relative precision of
+the body size rather than of the distance travelled.
+
+Loss per frame (the paper's): ``L(f) = Σ_m w_m ‖p_{t(m)}(f) − p̂_m(f)‖²`` over the mapped
+target joints ``t(m)`` and their source positions ``p̂_m`` (already scaled and axis-
+converted to the target's units).
+
+Methods:
+
+* ``lm`` (default): batched Levenberg–Marquardt on the rotation manifold. Every
+  optimised joint ``j`` gets a world-frame tangent update ``ω_j`` applied as
+  ``q_j ← q_j · exp(R(W_j)ᵀ ω_j)``; the Jacobian is analytic,
+  ``∂p_m/∂ω_j = [p_j − p_m]_×`` for every mapped descendant ``m`` of ``j`` (and the
+  identity for free translations). The damped normal equations are solved on the
+  joint tree in O(joints) (:mod:`usdmotion.ops.retarget_tree`); the dense Cholesky
+  form is kept as a reference (``linear="dense"``). Steps are accepted per frame only
+  when they lower the loss, so the current iterate is always the best one seen.
+* ``adam``: the paper's reference: Adam (lr 0.1, 500 iterations, Kingma–Ba defaults)
+  on the Euler angles (radians, each joint's channel order) of every optimised joint,
+  for every frame separately — vmapped, which is mathematically the same as a loop
+  over frames because Adam is element-wise and frames do not share parameters — keeping
+  each frame's best iterate.
+
+Compiled functions are cached per skeleton structure, method, iteration count and
+chunk size (frames are solved in fixed-size chunks, the last one padded).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import numpy as np
+
+from usdmotion.kinematics import fk_arrays
+from usdmotion.rotations import euler_to_quat, quat_exp, quat_mul, quat_normalize, quat_rotate
+
+#: Levenberg–Marquardt damping: start, factor down on success / up on failure, bounds.
+LM_LAMBDA0 = 1e-2
+LM_DOWN, LM_UP = 0.2, 5.0
+LM_LAMBDA_MIN, LM_LAMBDA_MAX = 1e-5, 1e8
+#: Floor of the damping matrix relative to the mean curvature of each joint.
+LM_DIAG_FLOOR = 1e-3
+#: Damping not scaled by λ (relative to each joint's mean curvature): a fixed trust region
+#: that keeps steps out of the loss's null space (the twist of a bone with one mapped
+#: child), so twists stay as smooth over time as the initial guess instead of drifting
+#: on float32 noise; it slows well-determined directions by ~0.1 %.
+LM_NULL_DAMPING = 1e-3
+ADAM_LR = 0.1
+#: LM stops when every frame of a chunk went two iterations without gaining LM_RTOL (relative)
+#: or when the chunk's total loss gained less than LM_RTOL_TOTAL twice in a row; at most
+#: LM_ITERATIONS iterations.
+LM_ITERATIONS = 100
+LM_RTOL = 1e-5
+LM_RTOL_TOTAL = 1e-6
+LM_ATOL = 1e-12  # ... or when its loss fell below this fraction of where it started
+ADAM_ITERATIONS = 500
+
+
+@dataclass(frozen=True, eq=False)
+class Problem:
+    """Static structure of a retargeting problem (topology-sized NumPy arrays).
+
+    Attributes:
+        parents: ``(J,)`` target parent indices.
+        mapped: ``(M,)`` target joints compared with source positions.
+        weights: ``(M,)`` loss weight per mapped joint.
+        rot_joints: ``(R,)`` joints whose rotation is optimised.
+        trans_joints: ``(T,)`` joints whose local translation is optimised.
+        orders: ``R`` Euler orders (``"ZXY"``...) of ``rot_joints`` (Adam's parameters).
+    """
+
+    parents: np.ndarray
+    mapped: np.ndarray
+    weights: np.ndarray
+    rot_joints: np.ndarray
+    trans_joints: np.ndarray
+    orders: tuple[str, ...]
+
+    def key(self) -> tuple:
+        return (tuple(self.parents.tolist()), tuple(self.mapped.tolist()), tuple(np.round(self.weights, 12).tolist()),
+                tuple(self.rot_joints.tolist()), tuple(self.trans_joints.tolist()), self.orders)
+
+    @property
+    def n_params(self) -> int:
+        return 3 * (len(self.rot_joints) + len(self.trans_joints))
+
+
+def _masks(problem: Problem) -> tuple[np.ndarray, np.ndarray]:
+    """``(rot_mask (M, R), trans_mask (M, T))``: which parameters move which mapped joint."""
+    from usdmotion.ops.hierarchy import ancestor_matrix
+
+    anc = ancestor_matrix(problem.parents)
+    rot = anc[problem.rot_joints][:, problem.mapped].T
+    sub = anc | np.eye(len(problem.parents), dtype=bool)
+    trans = sub[problem.trans_joints][:, problem.mapped].T
+    return rot.astype(np.float32), trans.astype(np.float32)
+
+
+def _skew(a):
+    """``(..., 3, 3)`` cross-product matrices ``[a]_×`` of ``a (..., 3)``."""
+    import jax.numpy as jnp
+
+    z = jnp.zeros_like(a[..., 0])
+    x, y, w = a[..., 0], a[..., 1], a[..., 2]
+    return jnp.stack([jnp.stack([z, -w, y], -1), jnp.stack([w, z, -x], -1), jnp.stack([-y, x, z], -1)], -2)
+
+
+def make_jacobian(problem: Problem):
+    """``world_p (B,J,3) -> J (B, 3M, P)``: the analytic Jacobian of the weighted residuals
+    ``√w_m (p_m − p̂_m)`` with respect to world-frame rotation increments ``ω_j`` of the
+    rotation joints (``∂p_m/∂ω_j = [p_j − p_m]_×`` for mapped descendants ``m``) and
+    world-frame increments of the free translations (identity on their subtree)."""
+    import jax.numpy as jnp
+
+    mapped = jnp.asarray(problem.mapped)
+    sqrt_w = jnp.asarray(np.sqrt(problem.weights), jnp.float32)
+    rot_j = jnp.asarray(problem.rot_joints)
+    rot_mask, trans_mask = (jnp.asarray(m) for m in _masks(problem))
+    n_rot, n_trans, n_map = len(problem.rot_joints), len(problem.trans_joints), len(problem.mapped)
+    eye3 = jnp.eye(3, dtype=jnp.float32)
+
+    def jacobian(world_p):
+        batch = world_p.shape[0]
+        blocks = []
+        if n_rot:
+            a = world_p[:, None, rot_j] - world_p[:, mapped, None]  # (B, M, R, 3)
+            jr = _skew(a) * rot_mask[None, :, :, None, None]  # (B, M, R, 3, 3)
+            blocks.append(jnp.transpose(jr, (0, 1, 3, 2, 4)).reshape(batch, 3 * n_map, 3 * n_rot))
+        if n_trans:
+            jt = trans_mask[:, None, :, None] * eye3[None, :, None, :]  # (M, 3, T, 3)
+            blocks.append(jnp.broadcast_to(jt.reshape(1, 3 * n_map, 3 * n_trans), (batch, 3 * n_map, 3 * n_trans)))
+        jac = jnp.concatenate(blocks, axis=-1) if len(blocks) > 1 else blocks[0]
+        return jac * jnp.repeat(sqrt_w, 3)[None, :, None]
+
+    return jacobian
+
+
+def make_apply(problem: Problem):
+    """``(q, t, world_q, step (B, P)) -> (q, t)``: apply world-frame increments on the manifold.
+
+    Rotation joint ``j``: ``q_j ← normalize(q_j · exp(R(W_j)ᵀ ω_j))`` (``W_j`` its world
+    rotation), i.e. its world rotation becomes ``exp(ω_j) · W_j``; free translation ``k``:
+    ``t_k ← t_k + R(W_parent)ᵀ δ_k``.
+    """
+    import jax.numpy as jnp
+
+    parents = problem.parents
+    rot_j = jnp.asarray(problem.rot_joints)
+    trans_j = jnp.asarray(problem.trans_joints)
+    trans_parent = jnp.asarray(np.where(parents[problem.trans_joints] < 0, len(parents),
+                                        parents[problem.trans_joints]))
+    n_rot, n_trans = len(problem.rot_joints), len(problem.trans_joints)
+
+    def apply(q, t, world_q, step):
+        conj = jnp.asarray([1.0, -1.0, -1.0, -1.0], q.dtype)
+        if n_rot:
+            omega = step[:, : 3 * n_rot].reshape(-1, n_rot, 3)
+            local = quat_rotate(world_q[:, rot_j] * conj, omega)
+            q = q.at[:, rot_j].set(quat_normalize(quat_mul(q[:, rot_j], quat_exp(local))))
+        if n_trans:
+            delta = step[:, 3 * n_rot:].reshape(-1, n_trans, 3)
+            identity = jnp.broadcast_to(jnp.asarray([1.0, 0, 0, 0], q.dtype), (q.shape[0], 1, 4))
+            parent_q = jnp.concatenate([world_q, identity], axis=1)[:, trans_parent]
+            t = t.at[:, trans_j].add(quat_rotate(parent_q * conj, delta))
+        return q, t
+
+    return apply
+
+
+def make_residuals(problem: Problem):
+    """``(q, t, targets) -> (world_q, world_p, r (B, M, 3), loss (B,))`` with
+    ``r = p_mapped − targets`` and ``loss = Σ_m w_m ‖r_m‖²`` per frame."""
+    import jax.numpy as jnp
+
+    parents = problem.parents
+    mapped = jnp.asarray(problem.mapped)
+    w = jnp.asarray(problem.weights, jnp.float32)
+
+    def residuals(q, t, targets):
+        world_q, world_p = fk_arrays(q, t, parents)
+        r = world_p[:, mapped] - targets
+        return world_q, world_p, r, jnp.einsum("bmk,bmk,m->b", r, r, w.astype(r.dtype))
+
+    return residuals
+
+
+def single_point_joints(problem: Problem) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Rotation joints whose subtree holds exactly one mapped joint: ``(slot in
+    rot_joints, joint, that mapped joint)``. Their twist about the line to it is a null
+    direction of the loss."""
+    from usdmotion.ops.hierarchy import ancestor_matrix
+
+    anc = ancestor_matrix(problem.parents)[:, problem.mapped]  # (J, M): mapped strict descendants
+    rows = [(k, int(j), int(problem.mapped[np.flatnonzero(anc[j])[0]]))
+            for k, j in enumerate(problem.rot_joints) if anc[j].sum() == 1]
+    return tuple(np.array([r[i] for r in rows], np.int64) for i in range(3))  # type: ignore[return-value]
+
+
+def make_dense_step(problem: Problem):
+    """``(world_p, r, lam) -> step``: the same LM step as :func:`make_tree_step` from the
+    explicit Jacobian, ``JᵀWJ`` and a batched Cholesky factorisation (reference)."""
+    import jax
+    import jax.numpy as jnp
+
+    jacobian = make_jacobian(problem)
+    sqrt_w = jnp.sqrt(jnp.asarray(problem.weights, jnp.float32))
+
+    def step(world_p, r, lam):
+        jac = jacobian(world_p)
+        rw = (r * sqrt_w[:, None].astype(r.dtype)).reshape(r.shape[0], -1)
+        h, g = jnp.einsum("bri,brj->bij", jac, jac), jnp.einsum("bri,br->bi", jac, rw)
+        diag = jnp.diagonal(h, axis1=1, axis2=2).reshape(h.shape[0], -1, 3)
+        mean = jnp.mean(diag, axis=-1, keepdims=True)
+        damp = lam[:, None, None] * (diag + LM_DIAG_FLOOR * mean + 1e-12) + LM_NULL_DAMPING * mean
+        damp = damp.reshape(h.shape[0], -1)
+        damped = h + damp[:, :, None] * jnp.eye(h.shape[-1], dtype=h.dtype)
+        return -jax.scipy.linalg.cho_solve((jnp.linalg.cholesky(damped), True), g[..., None])[..., 0]
+
+    return step
+
+
+def make_lm_step(problem: Problem, linear: str = "tree"):
+    """``(world_p, r, lam) -> step (B, P)``: the LM step (``linear``: ``"tree"`` or
+    ``"dense"``) with the twist of every :func:`single_point_joints` joint about the line
+    to its one mapped descendant removed: the loss cannot see it, so left in, float32
+    noise would make it drift over the iterations and flip bones by up to 180° between
+    frames. The twist then stays where the (smooth) initial guess put it."""
+    import jax.numpy as jnp
+
+    from usdmotion.ops.retarget_tree import make_tree_step
+
+    linear_step = make_tree_step(problem) if linear == "tree" else make_dense_step(problem)
+    slot, joint, point = (jnp.asarray(a) for a in single_point_joints(problem))
+    n_rot = len(problem.rot_joints)
+
+    def lm_step(world_p, r, lam):
+        step = linear_step(world_p, r, lam)
+        if slot.size == 0:
+            return step
+        omega = step[:, : 3 * n_rot].reshape(step.shape[0], n_rot, 3)
+        axis = world_p[:, point] - world_p[:, joint]
+        axis = axis / jnp.maximum(jnp.linalg.norm(axis, axis=-1, keepdims=True), 1e-20)
+        w = omega[:, slot]
+        omega = omega.at[:, slot].set(w - jnp.sum(w * axis, -1, keepdims=True) * axis)
+        return step.at[:, : 3 * n_rot].set(omega.reshape(step.shape[0], -1))
+
+    return lm_step
+
+
+def _make_lm(problem: Problem, iterations: int, linear: str = "tree"):
+    """A jitted ``(q, t, targets) -> (q, t, loss (B,), initial loss (B,), iterations run)``
+    LM solver (at most ``iterations``; stops early when every frame has converged).
+
+    ``linear``: ``"tree"`` (:func:`make_tree_step`, default) or ``"dense"``
+    (:func:`make_dense_step`); both solve the same damped system.
+    """
+    import jax
+    import jax.numpy as jnp
+
+    evaluate = make_residuals(problem)
+    apply = make_apply(problem)
+    lm_step = make_lm_step(problem, linear)
+
+    def solve(q, t, targets):
+        world_q, world_p, r, loss = evaluate(q, t, targets)
+        initial = loss
+        lam = jnp.full(loss.shape, LM_LAMBDA0, loss.dtype)
+        stall = jnp.zeros(loss.shape, jnp.int32)  # iterations in a row without real progress
+
+        def cond(carry):
+            i, loss, stall, flat = carry[0], carry[6], carry[8], carry[9]
+            frames_done = (stall >= 2) | (loss <= LM_ATOL * initial)
+            return (i < iterations) & ~jnp.all(frames_done) & (flat < 2)
+
+        def body(carry):
+            i, q, t, world_q, world_p, r, loss, lam, stall, flat = carry
+            q2, t2 = apply(q, t, world_q, lm_step(world_p, r, lam))
+            world_q2, world_p2, r2, loss2 = evaluate(q2, t2, targets)
+            ok = (loss2 < loss) & jnp.isfinite(loss2)
+            gain = jnp.where(ok, (loss - loss2) / jnp.maximum(loss, 1e-30), 0.0)
+            stall = jnp.where(gain > LM_RTOL, 0, stall + 1)
+            pick = lambda new, old: jnp.where(ok.reshape((-1,) + (1,) * (new.ndim - 1)), new, old)  # noqa: E731
+            new_loss = pick(loss2, loss)
+            total_gain = (jnp.sum(loss) - jnp.sum(new_loss)) / jnp.maximum(jnp.sum(loss), 1e-30)
+            flat = jnp.where(total_gain < LM_RTOL_TOTAL, flat + 1, 0)
+            lam = jnp.clip(jnp.where(ok, lam * LM_DOWN, lam * LM_UP), LM_LAMBDA_MIN, LM_LAMBDA_MAX)
+            return (i + 1, pick(q2, q), pick(t2, t), pick(world_q2, world_q), pick(world_p2, world_p), pick(r2, r),
+                    new_loss, lam, stall, flat)
+
+        carry = jax.lax.while_loop(cond, body, (jnp.int32(0), q, t, world_q, world_p, r, loss, lam, stall,
+                                                jnp.int32(0)))
+        return carry[1], carry[2], carry[6], initial, carry[0]
+
+    return jax.jit(solve)
+
+
+def _euler_quats(theta, orders_groups, n_rot):
+    """Quaternions ``(B, R, 4)`` of Euler angles ``(B, R, 3)``, one conversion per order group."""
+    import jax.numpy as jnp
+
+    out = jnp.zeros(theta.shape[:-1] + (4,), theta.dtype)
+    for order, idx in orders_groups:
+        out = out.at[:, idx].set(euler_to_quat(theta[:, idx], order))
+    return out
+
+
+def _make_adam(problem: Problem, iterations: int, lr: float):
+    """A jitted ``(q, t, targets, theta0) -> (q, t, loss, initial loss)`` per-frame Adam."""
+    import jax
+    import jax.numpy as jnp
+    import optax
+
+    parents = problem.parents
+    mapped = jnp.asarray(problem.mapped)
+    w = jnp.asarray(problem.weights, jnp.float32)
+    rot_j = jnp.asarray(problem.rot_joints)
+    trans_j = jnp.asarray(problem.trans_joints)
+    groups = {}
+    for k, order in enumerate(problem.orders):
+        groups.setdefault(order, []).append(k)
+    groups = tuple((order, np.asarray(idx)) for order, idx in groups.items())
+    n_rot = len(problem.rot_joints)
+    optimiser = optax.adam(lr)
+
+    def frame_losses(params, q, t, targets):
+        theta, tt = params
+        q = q.at[:, rot_j].set(_euler_quats(theta, groups, n_rot)) if n_rot else q
+        t = t.at[:, trans_j].set(tt) if len(problem.trans_joints) else t
+        _, world_p = fk_arrays(q, t, parents)
+        d = world_p[:, mapped] - targets
+        per_frame = jnp.sum(w[None, :] * jnp.sum(d * d, axis=-1), axis=1)
+        return jnp.sum(per_frame), per_frame
+
+    grad = jax.value_and_grad(frame_losses, has_aux=True)
+
+    def solve(q, t, targets, theta0):
+        params = (theta0, t[:, trans_j])
+        state = optimiser.init(params)
+        (_, initial), _ = grad(params, q, t, targets)
+
+        def body(_, carry):
+            params, state, best, best_loss = carry
+            (_, loss), g = grad(params, q, t, targets)
+            better = loss < best_loss  # the loss of the current params, before the update
+            best = jax.tree.map(lambda b, p: jnp.where(better.reshape((-1,) + (1,) * (p.ndim - 1)), p, b), best, params)
+            best_loss = jnp.where(better, loss, best_loss)
+            updates, state = optimiser.update(g, state, params)
+            return optax.apply_updates(params, updates), state, best, best_loss
+
+        params, state, best, best_loss = jax.lax.fori_loop(0, iterations, body, (params, state, params, initial))
+        (_, last), _ = grad(params, q, t, targets)
+        better = last < best_loss
+        best = jax.tree.map(lambda b, p: jnp.where(better.reshape((-1,) + (1,) * (p.ndim - 1)), p, b), best, params)
+        best_loss = jnp.where(better, last, best_loss)
+        theta, tt = best
+        q = q.at[:, rot_j].set(_euler_quats(theta, groups, n_rot)) if n_rot else q
+        t = t.at[:, trans_j].set(tt) if len(problem.trans_joints) else t
+        return q, t, best_loss, initial, jnp.int32(iterations)
+
+    return jax.jit(solve)
+
+
+_EXECUTABLES: dict = {}
+
+
+def _executable(problem: Problem, method: str, iterations: int, lr: float, args) -> tuple[object, float]:
+    """``(compiled function, seconds spent compiling)`` for these argument shapes (cached)."""
+    import time
+
+    key = (problem.key(), method, iterations, lr, tuple((a.shape, str(a.dtype)) for a in args))
+    if key in _EXECUTABLES:
+        return _EXECUTABLES[key], 0.0
+    start = time.perf_counter()
+    fn = _make_lm(problem, iterations) if method == "lm" else _make_adam(problem, iterations, lr)
+    compiled = fn.lower(*args).compile()
+    if len(_EXECUTABLES) >= 32:
+        _EXECUTABLES.pop(next(iter(_EXECUTABLES)))
+    _EXECUTABLES[key] = compiled
+    return compiled, time.perf_counter() - start
+
+
+def _bucket(n: int, smallest: int = 16) -> int:
+    """Smallest ``2^k · (8 + i) / 8 ≥ n`` (≤ 12.5 % padding, few distinct compiled sizes)."""
+    if n <= smallest:
+        return smallest
+    base = 1 << (int(n).bit_length() - 1)
+    return next(base * (8 + i) // 8 for i in range(9) if base * (8 + i) // 8 >= n)
+
+
+def chunk_plan(n_frames: int, problem: Problem, budget_bytes: float = 64e6) -> tuple[int, int]:
+    """``(frames per compiled call, number of calls)``: equal chunks under a memory budget
+    (Jacobian and normal matrices, float32), each padded to a :func:`_bucket` size."""
+    n_params, n_rows = max(problem.n_params, 3), 3 * len(problem.mapped)
+    per_frame = 4 * 3 * (n_rows * n_params + n_params * n_params)
+    largest = int(min(4096, max(64, budget_bytes // per_frame)))
+    calls = -(-n_frames // largest)
+    return _bucket(-(-n_frames // calls)), calls
+
+
+@dataclass(frozen=True)
+class Solution:
+    """Result of :func:`solve`: float64 NumPy arrays and timings.
+
+    Attributes:
+        q: ``(F, J, 4)`` local rotations (unit wxyz).
+        t: ``(F, J, 3)`` local translations (same centring as the input).
+        loss: ``(F,)`` final loss per frame (float32 solver arithmetic).
+        initial: ``(F,)`` loss of the initial guess.
+        compile_s: seconds spent compiling (0 when cached).
+        run_s: seconds spent optimising.
+        chunk: frames per compiled call; calls: number of calls.
+        iterations: most iterations any chunk ran (LM stops early when converged).
+    """
+
+    q: np.ndarray
+    t: np.ndarray
+    loss: np.ndarray
+    initial: np.ndarray
+    compile_s: float
+    run_s: float
+    chunk: int
+    calls: int
+    iterations: int
+
+
+def solve(problem: Problem, q0: np.ndarray, t0: np.ndarray, targets: np.ndarray, method: str = "lm",
+          iterations: int | None = None, chunk: int | None = None, lr: float = ADAM_LR,
+          progress=None) -> Solution:
+    """Optimise rotations (and free translations) of all frames.
+
+    Args:
+        problem: static structure.
+        q0: ``(F, J, 4)`` initial local rotations (wxyz).
+        t0: ``(F, J, 3)`` local translations (root: world position), already centred.
+        targets: ``(F, M, 3)`` source positions of the mapped joints, same frame/centring.
+        method: ``"lm"`` or ``"adam"``.
+        iterations: LM's maximum (default 100; it stops when converged) or Adam's count (500).
+        chunk: frames per compiled call (default :func:`chunk_plan`).
+        lr: Adam's learning rate.
+        progress: optional ``callable(frames_done)``.
+    """
+    import time
+
+    import jax
+    import jax.numpy as jnp
+
+    from usdmotion.rotations import quat_to_euler
+
+    if method not in ("lm", "adam"):
+        raise ValueError(f"unknown method {method!r}")
+    iterations = int(iterations if iterations is not None else (LM_ITERATIONS if method == "lm" else ADAM_ITERATIONS))
+    n_frames = q0.shape[0]
+    chunk = chunk or chunk_plan(n_frames, problem)[0]
+    theta0 = None
+    if method == "adam":
+        theta0 = np.zeros(q0.shape[:1] + (len(problem.rot_joints), 3))
+        for k, (j, order) in enumerate(zip(problem.rot_joints, problem.orders)):
+            theta0[:, k] = quat_to_euler(q0[:, j], order)
+    outs, compile_s, run_s, calls, ran = [], 0.0, 0.0, 0, 0
+    for start in range(0, n_frames, chunk):
+        stop = min(start + chunk, n_frames)
+        pad = np.r_[np.arange(start, stop), np.full(chunk - (stop - start), stop - 1)]
+        args = [jnp.asarray(a[pad], jnp.float32) for a in (q0, t0, targets)]
+        if theta0 is not None:
+            args.append(jnp.asarray(theta0[pad], jnp.float32))
+        fn, seconds = _executable(problem, method, iterations, float(lr), args)
+        compile_s += seconds
+        began = time.perf_counter()
+        result = jax.block_until_ready(fn(*args))
+        run_s += time.perf_counter() - began
+        outs.append([np.asarray(x, np.float64)[: stop - start] for x in result[:4]])
+        ran = max(ran, int(result[4]))
+        calls += 1
+        if progress is not None:
+            progress(stop - start)
+    q, t, loss, initial = (np.concatenate(parts) for parts in zip(*outs))
+    q /= np.linalg.norm(q, axis=-1, keepdims=True)
+    return Solution(q, t, loss, initial, compile_s, run_s, chunk, calls, ran)
+
+
+def device_description() -> str:
+    """The device JAX computes on, e.g. ``"cpu"`` or ``"gpu (NVIDIA H100)"``."""
+    import jax
+
+    device = jax.devices()[0]
+    kind = getattr(device, "device_kind", "")
+    return device.platform + (f" ({kind})" if kind and kind.lower() != device.platform else "")
+
+
+def enable_compilation_cache() -> str | None:
+    """Turn on JAX's persistent compilation cache (for command-line runs); returns its folder.
+
+    Folder: ``$USDMOTION_JAX_CACHE``, else ``$XDG_CACHE_HOME/usdmotion/jax`` (default
+    ``~/.cache/usdmotion/jax``); ``USDMOTION_JAX_CACHE=off`` disables it. A cache folder
+    the user already configured for JAX is left alone. Repeat runs on the same skeletons
+    then skip most of the XLA compile time.
+    """
+    import os
+    from pathlib import Path
+
+    import jax
+
+    setting = os.environ.get("USDMOTION_JAX_CACHE", "")
+    if setting.lower() in ("off", "0", "no", "false") or jax.config.jax_compilation_cache_dir:
+        return jax.config.jax_compilation_cache_dir or None
+    cache_home = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+    folder = Path(setting) if setting else cache_home / "usdmotion" / "jax"
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError:
+        return None
+    jax.config.update("jax_compilation_cache_dir", str(folder))
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+    return str(folder)
