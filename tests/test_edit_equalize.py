@@ -157,3 +157,13 @@ def test_presets_change_amplitude_in_the_documented_direction():
     rough = lambda mm: np.abs(np.diff(mm.rotations[:, thigh], 2, axis=0)).mean()  # noqa: E731
     assert rough(jitter) > 2 * rough(m) and rough(equalize(m, preset="denoise")) < rough(m)
     np.testing.assert_allclose(euler_wxyz(np.zeros(3)), [1, 0, 0, 0])
+
+
+def test_joints_that_never_rotate_come_back_unchanged(shared_file):
+    motion = read_motion(shared_file("cmu/cgspeed_12_01_walk.bvh"))
+    constant = np.all(motion.rotations == motion.rotations[:1], axis=(0, 2)) & ~motion.end_sites
+    assert constant.sum() >= 2  # LHipJoint, RHipJoint never rotate in cgspeed files
+    edited = equalize(motion, gains=[0.0, 0.0, 2.0])
+    assert np.array_equal(edited.rotations[:, constant], motion.rotations[:, constant])
+    moving = ~constant & ~motion.end_sites
+    assert np.abs(edited.rotations[:, moving] - motion.rotations[:, moving]).max() > 1e-3  # the rest did change

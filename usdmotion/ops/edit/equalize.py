@@ -228,7 +228,10 @@ def equalize(motion: Motion, gains=None, preset: str | None = None, joint: str |
         raise EditError(f"equaliser gains must be a non-empty list of finite numbers, got {gains}")
     _check_bands(motion.n_frames, len(gains))
     selected = select_joints(motion, joint, subtree)
-    rot_joints = np.flatnonzero(selected & ~motion.end_sites)
+    # a joint whose rotation never changes is its own equalised signal (the borders reflect
+    # through the end values, which keeps constants exactly): skip it
+    constant = np.all(motion.rotations == motion.rotations[:1], axis=(0, 2))
+    rot_joints = np.flatnonzero(selected & ~motion.end_sites & ~constant)
     rotations = equalize_rotations(motion.rotations, gains, rot_joints)
     root = np.array(motion.root_translation)
     jt = None if motion.joint_translations is None else np.array(motion.joint_translations)
