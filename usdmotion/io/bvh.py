@@ -34,6 +34,7 @@ from usdmotion.io.atomic import atomic_output
 from usdmotion.io.bvh_header import BvhHeader, frame_rate, header_arrays, parse_header
 from usdmotion.io.bvh_rows import line_of_row, parse_rows
 from usdmotion.motion import POSITION_CHANNELS, ROTATION_CHANNELS, Motion, RootOffset
+from usdmotion.parallel import over_slices
 from usdmotion.rotations import half_angles_to_quat, quat_to_euler
 
 DEFAULT_ROOT_CHANNELS = ("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation")
@@ -232,17 +233,21 @@ def rotations_from_channels(values: np.ndarray, channels: tuple[tuple[str, ...],
         if any(n in ROTATION_CHANNELS for n in names):
             groups.setdefault(rotation_order(names), []).append(j)
     half_per_degree = 0.5 * np.pi / 180.0
-    zeros = np.zeros((n_frames, 1))
     for order, joints in groups.items():
         gather = np.stack([_euler_columns(columns[j], order, -1) for j in joints])  # (G, 3), -1 = no channel
-        halves = []
-        for axis in range(3):  # contiguous (F, G) planes of half angles in radians
-            cols = gather[:, axis]
-            plane = values[:, np.maximum(cols, 0)] * half_per_degree
-            if np.any(cols < 0):
-                plane = np.where(cols[None] < 0, zeros, plane)
-            halves.append(plane)
-        rotations[:, joints] = half_angles_to_quat(*halves, order)
+        missing = gather < 0
+        safe = np.maximum(gather, 0)
+
+        def convert(frames: slice, order=order, joints=joints, safe=safe, missing=missing) -> None:
+            halves = []
+            for axis in range(3):  # contiguous (F, G) planes of half angles in radians
+                plane = values[frames][:, safe[:, axis]] * half_per_degree
+                if missing[:, axis].any():
+                    plane[:, missing[:, axis]] = 0.0
+                halves.append(plane)
+            rotations[frames, joints] = half_angles_to_quat(*halves, order)
+
+        over_slices(convert, n_frames, min_items=max(1, 40_000 // len(joints)))
     return rotations
 
 
