@@ -163,7 +163,7 @@ def parse_bvh(text: str | bytes, path: str | os.PathLike | None = None, lenient:
         except UnicodeDecodeError as exc:
             raise _utf8_error(raw, exc.start, path) from None
         line = raw.count(b"\n", 0, start) + 1
-        raise BvhParseError(path, f"non-ASCII character in the motion data", line,
+        raise BvhParseError(path, "non-ASCII character in the motion data", line,
                             start - (raw.rfind(b"\n", 0, start) + 1) + 1)
     n_channels = sum(len(c) for c in header.channels)
     rows = parse_rows(data, n_channels, header.data_line, path, lenient)
