@@ -10,12 +10,12 @@ used inside the hot paths of :mod:`usdmotion.ops.edit`. Convert with :func:`to_c
 
 from __future__ import annotations
 
-import os
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
+from usdmotion import parallel
 from usdmotion.constants import tol
 
 
@@ -163,14 +163,6 @@ def rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     return v + w[None] * t + np.cross(u, t, axis=0)
 
 
-def _workers() -> int:
-    try:
-        cores = len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        cores = os.cpu_count() or 1
-    return max(1, min(4, cores))
-
-
 def over_chunks(work: Callable[[np.ndarray], None], joints: np.ndarray, n_frames: int,
                 min_elements: int = 200_000) -> None:
     """Run ``work(joint_indices)`` on a few chunks of ``joints`` in threads.
@@ -179,7 +171,7 @@ def over_chunks(work: Callable[[np.ndarray], None], joints: np.ndarray, n_frames
     motions uses every core; small inputs run in one call. ``work`` must write disjoint
     parts of its output.
     """
-    workers = min(_workers(), len(joints), max(1, (len(joints) * n_frames) // min_elements))
+    workers = min(4, parallel.workers(), len(joints), max(1, (len(joints) * n_frames) // min_elements))
     if workers <= 1:
         work(joints)
         return
