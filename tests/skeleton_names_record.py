@@ -26,6 +26,8 @@ from pathlib import Path
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
+#: The rig profiles the record was made with (later profiles are checked elsewhere).
+PROFILES = ("bandai", "cmu_cgspeed", "cmu_max", "daz", "mixamo", "rokoko")
 #: Source → target rigs whose automatic maps are kept in full (the rest as digests).
 FULL_MAPS = (
     ("cmu/cgspeed_12_01_walk.bvh", "cmu/daz_10_01_soccer_kick.bvh"),
@@ -122,7 +124,7 @@ def record_skeleton(motion) -> dict:
         "de_leva": _attempt(de_leva),
         "bend_triples": [[motion.joint_names[int(j)] for j in row] for row in analyse.bend_triples(motion)],
         "profile": detect_profile(motion.joint_names),
-        "profile_joints": {name: profile_joints(p, motion.joint_names) for name, p in rig_profiles().items()},
+        "profile_joints": {name: profile_joints(rig_profiles()[name], motion.joint_names) for name in PROFILES},
     }
 
 
