@@ -42,7 +42,7 @@ from usdmotion.errors import InputError
 from usdmotion.kinematics import rest_positions
 from usdmotion.motion import Motion
 from usdmotion.skeleton_names import (LANDMARK_POINTS, LIMBS, SIDES, children_map, depth, distal_joint, farthest_leaf,
-                                      fitting_preset, limb_candidates, parse_side, preset_names, proximal_joint,
+                                      fitting_preset, limb_candidates, parse_side, preset_names_attribute, proximal_joint,
                                       rest_tolerance)
 from usdmotion.skeleton_names import distal_joints  # noqa: F401 - its old import path
 
@@ -69,11 +69,8 @@ _DE_LEVA = (
 side_and_base = parse_side
 
 
-def __getattr__(name: str):
-    """``PRESET_NAMES``: the landmark presets in the order they are tried, read from the rig profiles on first use."""
-    if name == "PRESET_NAMES":
-        return preset_names("landmarks")
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+#: ``PRESET_NAMES``: the landmark presets in the order they are tried (read from the rig profiles on first use).
+__getattr__ = preset_names_attribute("landmarks", __name__)
 
 
 @dataclass(frozen=True)

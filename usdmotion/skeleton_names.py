@@ -29,10 +29,11 @@ from __future__ import annotations
 
 import json
 import re
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
+from types import MappingProxyType
 
 import numpy as np
 
@@ -143,17 +144,18 @@ def rig_profiles() -> dict[str, dict]:
     return out
 
 
-def _lookup(names: Iterable[str]) -> dict[str, str]:
-    """Namespace-free name → actual name (first one wins)."""
+def names_by_key(names: Iterable[str], key: Callable[[str], str]) -> dict[str, str]:
+    """``key(name)`` → name, the first name winning (``key``: :func:`strip_namespace`,
+    :func:`normalise_name`...)."""
     table: dict[str, str] = {}
     for n in names:
-        table.setdefault(strip_namespace(n), n)
+        table.setdefault(key(n), n)
     return table
 
 
 def profile_joints(profile: dict, names: Iterable[str]) -> dict[str, str] | None:
     """Canonical point → joint name of ``names`` if the skeleton fits ``profile``, else ``None``."""
-    table = _lookup(names)
+    table = names_by_key(names, strip_namespace)
     if any(s not in table for s in profile["signature"]):
         return None
     resolved = {}
@@ -241,7 +243,8 @@ def rig_presets(kind: str) -> tuple[RigPreset, ...]:
         points = {p: _first(c) for p, c in profile["joints"].items()}
         points.update(spec.get("landmarks", {}) if kind == "landmarks" else {})
         ns = spec.get("namespace", "")
-        found.append((spec["order"], RigPreset(spec["name"], profile["name"], {p: ns + n for p, n in points.items()},
+        exact = MappingProxyType({p: ns + n for p, n in points.items()})
+        found.append((spec["order"], RigPreset(spec["name"], profile["name"], exact,
                                                tuple(ns + n for n in spec["signature"]))))
     return tuple(preset for _, preset in sorted(found, key=lambda item: item[0]))
 
@@ -249,6 +252,17 @@ def rig_presets(kind: str) -> tuple[RigPreset, ...]:
 def preset_names(kind: str) -> tuple[str, ...]:
     """Names of the ``kind`` presets, in the order they are tried."""
     return tuple(p.name for p in rig_presets(kind))
+
+
+def preset_names_attribute(kind: str, module: str) -> Callable[[str], tuple[str, ...]]:
+    """A module ``__getattr__`` that gives ``PRESET_NAMES`` (the ``kind`` preset names) on
+    first use, so importing the module reads no rig profile."""
+    def module_attribute(name: str) -> tuple[str, ...]:
+        if name == "PRESET_NAMES":
+            return preset_names(kind)
+        raise AttributeError(f"module {module!r} has no attribute {name!r}")
+
+    return module_attribute
 
 
 def preset_named(kind: str, name: str) -> RigPreset | None:

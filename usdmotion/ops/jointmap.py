@@ -27,7 +27,7 @@ import numpy as np
 
 from usdmotion.errors import InputError
 from usdmotion.resources import resource_path
-from usdmotion.skeleton_names import detect_profile, normalise_name, profile_joints, rig_profiles
+from usdmotion.skeleton_names import detect_profile, names_by_key, normalise_name, profile_joints, rig_profiles
 from usdmotion.skeleton_names import strip_namespace  # noqa: F401 - its old import path
 
 
@@ -140,9 +140,7 @@ def auto_map(source_names, target_names, target_end_sites=None) -> JointMap:
     if sp and tp:
         return JointMap(profile_map(sp, tp, source_names, target_names), {}, f"rig profiles {sp} -> {tp}",
                         profiles=(sp, tp))
-    by_key: dict[str, str] = {}
-    for n in source_names:
-        by_key.setdefault(normalise_name(n), n)
+    by_key = names_by_key(source_names, normalise_name)
     pairs = {n: by_key[normalise_name(n)] for n in target_names if normalise_name(n) in by_key}
     return JointMap(pairs, {}, "normalised names")
 

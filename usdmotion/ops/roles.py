@@ -27,7 +27,7 @@ from collections.abc import Mapping
 from usdmotion.errors import InputError
 from usdmotion.motion import Motion
 from usdmotion.skeleton_names import (LIMBS, ROLE_POINTS, SIDES, common_ancestor, fitting_preset, limb_candidates,
-                                      longest_child, parse_side, preset_named, preset_names)
+                                      longest_child, parse_side, preset_named, preset_names, preset_names_attribute)
 
 LIMB_ROLES = ("shoulder", "elbow", "wrist", "hip", "knee", "ankle")
 #: Every role, in a fixed order: ``root``, ``chest``, then ``left_shoulder`` ... ``right_ankle``.
@@ -41,11 +41,8 @@ LIMB_BONES = tuple(
 )
 
 
-def __getattr__(name: str):
-    """``PRESET_NAMES``: the role presets in the order they are tried, read from the rig profiles on first use."""
-    if name == "PRESET_NAMES":
-        return preset_names("roles")
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+#: ``PRESET_NAMES``: the role presets in the order they are tried (read from the rig profiles on first use).
+__getattr__ = preset_names_attribute("roles", __name__)
 
 
 def _preset_roles(motion: Motion, preset: str) -> dict[str, str]:
