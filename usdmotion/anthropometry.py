@@ -41,9 +41,9 @@ import numpy as np
 from usdmotion.errors import InputError
 from usdmotion.kinematics import rest_positions
 from usdmotion.motion import Motion
-from usdmotion.skeleton_names import (LANDMARK_POINTS, LIMBS, SIDES, children_map, depth, distal_joint, farthest_leaf,
-                                      fitting_preset, limb_candidates, parse_side, preset_names_attribute, proximal_joint,
-                                      rest_tolerance)
+from usdmotion.skeleton_names import (LANDMARK_POINTS, SIDES, children_map, depth, distal_joint, farthest_leaf,
+                                      fitting_preset, middle_joint_candidates, parse_side, preset_names_attribute,
+                                      proximal_joint, rest_tolerance)
 from usdmotion.skeleton_names import distal_joints  # noqa: F401 - its old import path
 
 SEXES = ("male", "female")
@@ -118,18 +118,17 @@ def _guess(motion: Motion) -> dict[str, int | None]:
     kids = children_map(parents)
     parsed = [parse_side(n) for n in motion.joint_names]
     found: dict[str, int | None] = {name: None for name in LANDMARKS}
-    for side in SIDES:
-        for middle, upper, lower, tip, vocab in LIMBS:
-            candidates = limb_candidates(motion.joint_names, motion.end_sites, side, vocab, parsed)
-            if not candidates:
-                continue
-            mid = min(candidates, key=lambda j: depth(parents, j))
-            found[f"{side}_{middle}"] = mid
-            found[f"{side}_{upper}"] = proximal_joint(parents, rest, mid, eps)
-            down = distal_joint(kids, rest, mid, eps)
-            found[f"{side}_{lower}"] = down
-            if down is not None:
-                found[f"{side}_{tip}"] = farthest_leaf(parents, kids, rest, down)
+    for side, (middle, upper, lower, tip), candidates in middle_joint_candidates(motion.joint_names,
+                                                                                 motion.end_sites, parsed):
+        if not candidates:
+            continue
+        mid = min(candidates, key=lambda j: depth(parents, j))
+        found[f"{side}_{middle}"] = mid
+        found[f"{side}_{upper}"] = proximal_joint(parents, rest, mid, eps)
+        down = distal_joint(kids, rest, mid, eps)
+        found[f"{side}_{lower}"] = down
+        if down is not None:
+            found[f"{side}_{tip}"] = farthest_leaf(parents, kids, rest, down)
     necks = [j for j, (_, b) in enumerate(parsed) if "neck" in b and not motion.end_sites[j]]
     heads = [j for j, (_, b) in enumerate(parsed) if b.startswith("head") and not motion.end_sites[j]]
     if necks:

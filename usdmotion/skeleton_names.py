@@ -372,11 +372,16 @@ def farthest_leaf(parents: np.ndarray, kids: dict[int, list[int]], rest: np.ndar
     return max(leaves, key=lambda j: _rest_distance(rest, j, joint)) if leaves else None
 
 
-def limb_candidates(joint_names: Sequence[str], end_sites: np.ndarray, side: str, words: frozenset[str],
-                    parsed: Sequence[tuple[str | None, str]] | None = None) -> list[int]:
-    """Joints (End Sites excepted) on ``side`` whose base name is in ``words``, in file order.
+def middle_joint_candidates(joint_names: Sequence[str], end_sites: np.ndarray,
+                            parsed: Sequence[tuple[str | None, str]] | None = None):
+    """For each side and limb of :data:`LIMBS`: ``(side, (middle, upper, lower, tip), joints)``,
+    ``joints`` being the joints (End Sites excepted) on that side whose base name is one of
+    the limb's middle-joint words, in file order.
 
     ``parsed`` (:func:`parse_side` of every name) saves parsing the names again.
     """
     parsed = parsed if parsed is not None else [parse_side(n) for n in joint_names]
-    return [j for j, (s, b) in enumerate(parsed) if s == side and b in words and not end_sites[j]]
+    for side in SIDES:
+        for middle, upper, lower, tip, words in LIMBS:
+            joints = [j for j, (s, b) in enumerate(parsed) if s == side and b in words and not end_sites[j]]
+            yield side, (middle, upper, lower, tip), joints

@@ -26,8 +26,9 @@ from collections.abc import Mapping
 
 from usdmotion.errors import InputError
 from usdmotion.motion import Motion
-from usdmotion.skeleton_names import (LIMBS, ROLE_POINTS, SIDES, common_ancestor, fitting_preset, limb_candidates,
-                                      longest_child, parse_side, preset_named, preset_names, preset_names_attribute)
+from usdmotion.skeleton_names import (ROLE_POINTS, SIDES, common_ancestor, fitting_preset, longest_child,
+                                      middle_joint_candidates, preset_named, preset_names, preset_names_attribute)
+from usdmotion.skeleton_names import parse_side  # noqa: F401 - its old import path
 
 LIMB_ROLES = ("shoulder", "elbow", "wrist", "hip", "knee", "ankle")
 #: Every role, in a fixed order: ``root``, ``chest``, then ``left_shoulder`` ... ``right_ankle``.
@@ -60,29 +61,23 @@ def _guess_roles(motion: Motion) -> tuple[dict[str, int], list[str]]:
     """Roles found by name and hierarchy (step 2), and the roles that could not be found."""
     found: dict[str, int] = {}
     missing: list[str] = []
-    parsed = [parse_side(n) for n in motion.joint_names]
-    for side in SIDES:
-        for middle, upper, lower, _, vocabulary in LIMBS:
-            hits = limb_candidates(motion.joint_names, motion.end_sites, side, vocabulary, parsed)
-            if not hits:
-                missing.append(f"{side}_{middle}")
-                continue
-            j = hits[0]  # the first in file order is the one nearest the root
-            found[f"{side}_{middle}"] = j
-            found[f"{side}_{upper}"] = int(motion.parents[j])
-            end = longest_child(motion.parents, motion.offsets, j)
-            if end is None:
-                missing.append(f"{side}_{lower}")
-            else:
-                found[f"{side}_{lower}"] = end
-    if "left_hip" in found and "right_hip" in found:
-        found["root"] = common_ancestor(motion.parents, found["left_hip"], found["right_hip"])
-    else:
-        missing.append("root")
-    if "left_shoulder" in found and "right_shoulder" in found:
-        found["chest"] = common_ancestor(motion.parents, found["left_shoulder"], found["right_shoulder"])
-    else:
-        missing.append("chest")
+    for side, (middle, upper, lower, _), hits in middle_joint_candidates(motion.joint_names, motion.end_sites):
+        if not hits:
+            missing.append(f"{side}_{middle}")
+            continue
+        j = hits[0]  # the first in file order is the one nearest the root
+        found[f"{side}_{middle}"] = j
+        found[f"{side}_{upper}"] = int(motion.parents[j])
+        end = longest_child(motion.parents, motion.offsets, j)
+        if end is None:
+            missing.append(f"{side}_{lower}")
+        else:
+            found[f"{side}_{lower}"] = end
+    for centre, limb in (("root", "hip"), ("chest", "shoulder")):  # where the legs / arms branch off
+        if f"left_{limb}" in found and f"right_{limb}" in found:
+            found[centre] = common_ancestor(motion.parents, found[f"left_{limb}"], found[f"right_{limb}"])
+        else:
+            missing.append(centre)
     return found, missing
 
 
