@@ -146,3 +146,18 @@ def test_asf_profile_is_named_not_detected(shared_file, tmp_path):
 def test_one_side_parser_for_roles_landmarks_and_maps(name, side_base, key):
     assert parse_side(name) == R.parse_side(name) == A.side_and_base(name) == side_base
     assert normalise_name(name) == key
+
+
+def test_signature_joints_gate_the_role_preset_only(shared_file):
+    """A look-alike rig (one signature joint renamed) is guessed for roles; landmark presets
+    need only their own joints (both as before the presets became data)."""
+    import dataclasses
+
+    from usdmotion.io import read_motion
+
+    walk = read_motion(shared_file("cmu/cgspeed_12_01_walk.bvh"))
+    assert R.match_preset(walk) == "cgspeed-mb" and A.find_landmarks(walk)[1] == "preset cgspeed-mb"
+    lookalike = dataclasses.replace(walk, joint_names=tuple("RHipJoint2" if n == "RHipJoint" else n
+                                                            for n in walk.joint_names))
+    assert R.match_preset(lookalike) is None
+    assert A.find_landmarks(lookalike)[1] == "preset cgspeed-mb"

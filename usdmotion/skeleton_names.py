@@ -230,8 +230,9 @@ def _first(candidates) -> str:
 def rig_presets(kind: str) -> tuple[RigPreset, ...]:
     """The ``"roles"`` or ``"landmarks"`` presets, in the order they are tried.
 
-    Every profile with ``presets`` has a role preset (its ``joints``); one whose
-    ``presets`` has ``landmarks`` also has a landmark preset (those points over ``joints``).
+    Every profile with ``presets`` has a role preset (its ``joints``, and its
+    ``signature`` must exist too); one whose ``presets`` has ``landmarks`` also has a
+    landmark preset (those points over ``joints``; it needs only its own joints).
     """
     if kind not in ("roles", "landmarks"):
         raise ValueError(f"kind must be 'roles' or 'landmarks', got {kind!r}")
@@ -244,8 +245,8 @@ def rig_presets(kind: str) -> tuple[RigPreset, ...]:
         points.update(spec.get("landmarks", {}) if kind == "landmarks" else {})
         ns = spec.get("namespace", "")
         exact = MappingProxyType({p: ns + n for p, n in points.items()})
-        found.append((spec["order"], RigPreset(spec["name"], profile["name"], exact,
-                                               tuple(ns + n for n in spec["signature"]))))
+        signature = tuple(ns + n for n in spec["signature"]) if kind == "roles" else ()  # landmarks: none
+        found.append((spec["order"], RigPreset(spec["name"], profile["name"], exact, signature)))
     return tuple(preset for _, preset in sorted(found, key=lambda item: item[0]))
 
 
