@@ -6,12 +6,17 @@ and automatic retargeting maps (``ops.jointmap``) on every BVH file in ``../shar
 the package's own example BVH, the shipped synthesis example and a few renamed variants
 of corpus rigs (other naming conventions). ``tests/test_skeleton_names.py`` compares the
 current code against ``tests/data/skeleton_names_golden.json``, which was written once
-from the code *before* the three modules were unified, with::
+from the code *before* the three modules were unified (commit ``c37d9a9``) with::
 
-    PYTHONPATH=$PWD .venv/bin/python tests/skeleton_names_record.py tests/data/skeleton_names_golden.json
+    export USDMOTION_SHARED_DATA=$(realpath ../shared/data)
+    mkdir /tmp/before && git archive c37d9a9 | tar -x -C /tmp/before && cp tests/skeleton_names_record.py /tmp/before/tests/
+    cd /tmp/before && PYTHONPATH=$PWD python tests/skeleton_names_record.py /tmp/golden.json
 
-Only public functions (and the two private guessers the existing tests call) are used,
-so the record is the same whichever module implements them.
+(``/tmp/golden.json`` comes out byte-identical to the golden).
+
+Only public functions and the private guessers the tests call (``roles._guess_roles``,
+``anthropometry._guess`` and ``_preset``, kept under those names) are used, so the
+record is the same whichever module implements them.
 """
 
 from __future__ import annotations
@@ -105,7 +110,7 @@ def record_skeleton(motion) -> dict:
     def de_leva():
         model = A.de_leva_model(motion, source="rig.bvh")
         return {"landmarks": model.landmarks, "notes": list(model.notes), "source": model.source,
-                "weights_sha": float(np.round(model.weights, 12).sum())}
+                "weights_sum": float(np.round(model.weights, 12).sum())}
 
     def preset_landmarks():
         hit = A._preset(motion)
