@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import json
 import re
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -374,7 +374,8 @@ def farthest_leaf(parents: np.ndarray, kids: dict[int, list[int]], rest: np.ndar
 
 
 def middle_joint_candidates(joint_names: Sequence[str], end_sites: np.ndarray,
-                            parsed: Sequence[tuple[str | None, str]] | None = None):
+                            parsed: Sequence[tuple[str | None, str]] | None = None,
+                            ) -> Iterator[tuple[str, tuple[str, str, str, str], list[int]]]:
     """For each side and limb of :data:`LIMBS`: ``(side, (middle, upper, lower, tip), joints)``,
     ``joints`` being the joints (End Sites excepted) on that side whose base name is one of
     the limb's middle-joint words, in file order.
