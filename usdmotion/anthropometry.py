@@ -22,7 +22,8 @@ foot       heel → toe tip (TTIP) ²                 1.37       1.29       44.1
   moves the foot COM forward by a few centimetres (≈ 1 mm on the whole-body COM).
 
 The end points ("landmarks") are found on a skeleton by a preset for the rigs of the
-shared corpus, else by name (the elbow and knee by name, the rest from the hierarchy:
+shared corpus (the ``presets`` of the rig profiles, :mod:`usdmotion.skeleton_names`),
+else by name (the elbow and knee by name, the rest from the hierarchy:
 shoulder/hip = the ancestor next to the elbow/knee, wrist/ankle = the next joint down,
 finger/toe tip and vertex = the farthest leaf below the wrist/ankle/head), and any
 landmark can be overridden. A custom segment table (e.g. for a 3-segment gymnast model)
@@ -32,7 +33,6 @@ positions, so the model is a ``(S, J)`` weight matrix applied to all frames at o
 
 from __future__ import annotations
 
-import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
@@ -41,9 +41,12 @@ import numpy as np
 from usdmotion.errors import InputError
 from usdmotion.kinematics import rest_positions
 from usdmotion.motion import Motion
+from usdmotion.skeleton_names import (LANDMARK_POINTS, SIDES, children_map, depth, distal_joint, farthest_leaf,
+                                      fitting_preset, middle_joint_candidates, parse_side, preset_names_attribute,
+                                      proximal_joint, rest_tolerance)
+from usdmotion.skeleton_names import distal_joints  # noqa: F401 - its old import path
 
 SEXES = ("male", "female")
-SIDES = ("left", "right")
 _LIMB = ("shoulder", "elbow", "wrist", "hand_tip", "hip", "knee", "ankle", "toe_tip")
 #: Every landmark name, in a fixed order.
 LANDMARKS = ("head_top", "neck") + tuple(f"{s}_{p}" for s in SIDES for p in _LIMB)
@@ -61,53 +64,13 @@ _DE_LEVA = (
     ("foot", "ankle", "toe_tip", 1.37, 1.29, 44.15, 40.14),
 )
 
-# Presets: landmark -> joint name; "{S}" = Left/Right, "{s}" = l/r, "{X}" = L/R.
-_PRESETS: dict[str, dict[str, str]] = {
-    "cgspeed-mb": {"head_top": "Head_End", "neck": "Neck", "shoulder": "{S}Arm", "elbow": "{S}ForeArm",
-                   "wrist": "{S}Hand", "hand_tip": "{S}HandIndex1_End", "hip": "{S}UpLeg", "knee": "{S}Leg",
-                   "ankle": "{S}Foot", "toe_tip": "{S}ToeBase_End"},
-    "cgspeed-max": {"head_top": "Head_End", "neck": "lowerneck", "shoulder": "{S}Shoulder", "elbow": "{S}Elbow",
-                    "wrist": "{S}Wrist", "hand_tip": "{X}Fingers_End", "hip": "{S}Hip", "knee": "{S}Knee",
-                    "ankle": "{S}Ankle", "toe_tip": "{S}Toe_End"},
-    "daz": {"head_top": "leftEye_End", "neck": "neck", "shoulder": "{s}Shldr", "elbow": "{s}ForeArm", "wrist": "{s}Hand",
-            "hand_tip": "{s}Mid2_End", "hip": "{s}Thigh", "knee": "{s}Shin", "ankle": "{s}Foot",
-            "toe_tip": "{s}Foot_End"},
-    "bandai": {"head_top": "Head_End", "neck": "Neck", "shoulder": "UpperArm_{X}", "elbow": "LowerArm_{X}",
-               "wrist": "Hand_{X}", "hand_tip": "Hand_{X}_End", "hip": "UpperLeg_{X}", "knee": "LowerLeg_{X}",
-               "ankle": "Foot_{X}", "toe_tip": "Toes_{X}_End"},
-}
-PRESET_NAMES = tuple(_PRESETS)
-
-_ELBOW = frozenset({"forearm", "elbow", "lowerarm", "lowarm", "armlower", "radius", "ulna"})
-_KNEE = frozenset({"leg", "knee", "lowerleg", "lowleg", "leglower", "shin", "tibia", "calf", "shank", "crus"})
-_KNOWN = _ELBOW | _KNEE | {"hand", "foot", "femur", "humerus", "thigh", "arm", "upleg", "shldr", "hip", "toe"}
+#: ``side_and_base(name)`` is :func:`usdmotion.skeleton_names.parse_side`:
+#: ``("left"|"right"|None, base)``, ``LeftForeArm`` → ``("left", "forearm")``.
+side_and_base = parse_side
 
 
-def _fill(template: str, side: str) -> str:
-    return (template.replace("{S}", side.capitalize()).replace("{s}", side[0])
-            .replace("{X}", side[0].upper()))
-
-
-def side_and_base(name: str) -> tuple[str | None, str]:
-    """``("left"|"right"|None, base)`` of a joint name: ``LeftForeArm`` → ``("left", "forearm")``.
-
-    Namespaces (``mixamorig:``) are dropped; the base is lower case, letters and digits only.
-    """
-    name = name.rsplit(":", 1)[-1]
-    low = name.lower()
-    side = None
-    if m := re.match(r"^(left|right)[_.\- ]?(.+)$", low):
-        side, rest = m.group(1), m.group(2)
-    elif m := re.match(r"^(.+?)[_.\- ]?(left|right)$", low):
-        side, rest = m.group(2), m.group(1)
-    elif m := re.match(r"^(.+?)[_.\- ]([lr])$", low):
-        side, rest = ("left" if m.group(2) == "l" else "right"), m.group(1)
-    elif (m := re.match(r"^([lLrR])(?=[A-Z_.\- ])[_.\- ]?(.+)$", name)) or (
-            (m := re.match(r"^([lr])(.+)$", name)) and re.sub(r"[^a-z0-9]", "", m.group(2)) in _KNOWN):
-        side, rest = ("left" if m.group(1).lower() == "l" else "right"), m.group(2).lower()
-    else:
-        rest = low
-    return side, re.sub(r"[^a-z0-9]", "", rest)
+#: ``PRESET_NAMES``: the landmark presets in the order they are tried (read from the rig profiles on first use).
+__getattr__ = preset_names_attribute("landmarks", __name__)
 
 
 @dataclass(frozen=True)
@@ -147,97 +110,32 @@ class BodyModel:
 # ------------------------------------------------------------------ landmark finding
 
 
-def _rest_distance(rest: np.ndarray, a: int, b: int) -> float:
-    return float(np.linalg.norm(rest[a] - rest[b]))
-
-
-def _children(parents: np.ndarray) -> dict[int, list[int]]:
-    out: dict[int, list[int]] = {}
-    for j, p in enumerate(parents):
-        out.setdefault(int(p), []).append(j)
-    return out
-
-
-def _subtree(parents: np.ndarray, joint: int) -> list[int]:
-    inside = np.zeros(len(parents), bool)
-    inside[joint] = True
-    for j in range(joint + 1, len(parents)):
-        if parents[j] >= 0 and inside[parents[j]]:
-            inside[j] = True
-    return [int(j) for j in np.flatnonzero(inside) if j != joint]
-
-
-def proximal_joint(parents: np.ndarray, rest: np.ndarray, joint: int, eps: float) -> int | None:
-    """Nearest ancestor of ``joint`` at a different rest position (``None`` for the root)."""
-    a = int(parents[joint])
-    while a >= 0 and _rest_distance(rest, a, joint) <= eps:
-        a = int(parents[a])
-    return a if a >= 0 else None
-
-
-def distal_joints(kids: dict[int, list[int]], rest: np.ndarray, joint: int, eps: float) -> list[int]:
-    """The joints next down from ``joint`` at a different rest position (through zero-length links)."""
-    frontier, found = list(kids.get(joint, [])), []
-    while frontier:
-        j = frontier.pop()
-        if _rest_distance(rest, j, joint) > eps:
-            found.append(j)
-        else:
-            frontier.extend(kids.get(j, []))
-    return sorted(found)
-
-
-def _distal(kids: dict[int, list[int]], rest: np.ndarray, joint: int, eps: float) -> int | None:
-    """Next joint down the chain: the one with the longest bone."""
-    found = distal_joints(kids, rest, joint, eps)
-    return max(found, key=lambda j: _rest_distance(rest, j, joint)) if found else None
-
-
-def children_map(parents: np.ndarray) -> dict[int, list[int]]:
-    """Parent index → list of child indices."""
-    return _children(parents)
-
-
-def _farthest_leaf(parents: np.ndarray, kids: dict[int, list[int]], rest: np.ndarray, joint: int) -> int | None:
-    leaves = [j for j in _subtree(parents, joint) if j not in kids]
-    return max(leaves, key=lambda j: _rest_distance(rest, j, joint)) if leaves else None
-
-
-def _depth(parents: np.ndarray, j: int) -> int:
-    d = 0
-    while parents[j] >= 0:
-        j, d = int(parents[j]), d + 1
-    return d
-
-
 def _guess(motion: Motion) -> dict[str, int | None]:
     """Landmark → joint index by name and hierarchy (``None`` where not found)."""
     parents = motion.parents
     rest = rest_positions(motion)
-    eps = 1e-6 * max(float(np.ptp(rest, axis=0).max()), 1e-12)
-    kids = _children(parents)
-    parsed = [side_and_base(n) for n in motion.joint_names]
+    eps = rest_tolerance(rest)
+    kids = children_map(parents)
+    parsed = [parse_side(n) for n in motion.joint_names]
     found: dict[str, int | None] = {name: None for name in LANDMARKS}
-    for side in SIDES:
-        for middle, upper, lower, tip, vocab in (("elbow", "shoulder", "wrist", "hand_tip", _ELBOW),
-                                                 ("knee", "hip", "ankle", "toe_tip", _KNEE)):
-            candidates = [j for j, (s, b) in enumerate(parsed) if s == side and b in vocab and not motion.end_sites[j]]
-            if not candidates:
-                continue
-            mid = min(candidates, key=lambda j: _depth(parents, j))
-            found[f"{side}_{middle}"] = mid
-            found[f"{side}_{upper}"] = proximal_joint(parents, rest, mid, eps)
-            down = _distal(kids, rest, mid, eps)
-            found[f"{side}_{lower}"] = down
-            if down is not None:
-                found[f"{side}_{tip}"] = _farthest_leaf(parents, kids, rest, down)
+    for side, (middle, upper, lower, tip), candidates in middle_joint_candidates(motion.joint_names,
+                                                                                 motion.end_sites, parsed):
+        if not candidates:
+            continue
+        mid = min(candidates, key=lambda j: depth(parents, j))
+        found[f"{side}_{middle}"] = mid
+        found[f"{side}_{upper}"] = proximal_joint(parents, rest, mid, eps)
+        down = distal_joint(kids, rest, mid, eps)
+        found[f"{side}_{lower}"] = down
+        if down is not None:
+            found[f"{side}_{tip}"] = farthest_leaf(parents, kids, rest, down)
     necks = [j for j, (_, b) in enumerate(parsed) if "neck" in b and not motion.end_sites[j]]
     heads = [j for j, (_, b) in enumerate(parsed) if b.startswith("head") and not motion.end_sites[j]]
     if necks:
-        found["neck"] = min(necks, key=lambda j: _depth(parents, j))
+        found["neck"] = min(necks, key=lambda j: depth(parents, j))
     if heads:
-        head = min(heads, key=lambda j: _depth(parents, j))
-        found["head_top"] = _farthest_leaf(parents, kids, rest, head)
+        head = min(heads, key=lambda j: depth(parents, j))
+        found["head_top"] = farthest_leaf(parents, kids, rest, head)
         if found["head_top"] is None:
             found["head_top"] = head
         if found["neck"] is None:
@@ -246,15 +144,12 @@ def _guess(motion: Motion) -> dict[str, int | None]:
 
 
 def _preset(motion: Motion) -> tuple[str, dict[str, int]] | None:
+    """``(preset name, landmark → joint index)`` of the first landmark preset that fits, else ``None``."""
+    hit = fitting_preset("landmarks", motion.joint_names, LANDMARKS, LANDMARK_POINTS)
+    if hit is None:
+        return None
     index = {n: j for j, n in enumerate(motion.joint_names)}
-    for name, table in _PRESETS.items():
-        names = {}
-        for landmark in LANDMARKS:
-            side, _, part = landmark.partition("_") if landmark.startswith(SIDES) else (None, "", landmark)
-            names[landmark] = _fill(table[part], side) if side else table[part]
-        if all(n in index for n in names.values()):
-            return name, {k: index[v] for k, v in names.items()}
-    return None
+    return hit[0].name, {k: index[v] for k, v in hit[1].items()}
 
 
 def find_landmarks(motion: Motion, overrides: Mapping[str, str] | None = None,

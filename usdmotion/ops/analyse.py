@@ -38,11 +38,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from usdmotion.anthropometry import BodyModel, children_map, distal_joints, proximal_joint
+from usdmotion.anthropometry import BodyModel
 from usdmotion.errors import InputError
 from usdmotion.kinematics import rest_positions, world_rotations_positions
 from usdmotion.motion import Motion
 from usdmotion.ops.smoothing import FilterSpec, smooth_derivatives
+from usdmotion.skeleton_names import children_map, distal_joints, proximal_joint, rest_tolerance
 
 AXES = ("x", "y", "z")
 
@@ -254,7 +255,7 @@ def euler_angles(motion: Motion, order: str | None = None) -> tuple[np.ndarray, 
 def bend_triples(motion: Motion) -> np.ndarray:
     """``(K, 3)`` rows ``(joint, proximal, distal)`` for joints with a defined bend angle."""
     rest = rest_positions(motion)
-    eps = 1e-6 * max(float(np.ptp(rest, axis=0).max()), 1e-12)
+    eps = rest_tolerance(rest)
     kids = children_map(motion.parents)
     rows = []
     for j in range(motion.n_joints):  # topology only, O(J)

@@ -6,9 +6,13 @@ so a map between any two known rigs is composed through the canonical names), or
 made automatically:
 
 1. **same names**: target joints whose names exist in the source (same rig family);
-2. **rig profiles**: both skeletons recognised by a profile's ``signature``;
-3. **normalised names**: lower case, ``prefix:`` namespaces and non-alphanumerics
-   removed, ``left/right`` → ``l/r``.
+2. **rig profiles**: both skeletons recognised by a profile's ``signature`` (profiles
+   with ``"auto_map": false`` are used only where a map file names them);
+3. **normalised names**: lower case, ``prefix:`` / ``group|`` namespaces and
+   non-alphanumerics removed, ``left/right`` → ``l/r``.
+
+Names and profiles are read by :mod:`usdmotion.skeleton_names`, which segmentation roles
+and body landmarks share.
 
 :func:`auto_map` reports what it could not map.
 """
@@ -16,15 +20,15 @@ made automatically:
 from __future__ import annotations
 
 import json
-import re
 from dataclasses import dataclass, field
-from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
 
 from usdmotion.errors import InputError
 from usdmotion.resources import resource_path
+from usdmotion.skeleton_names import detect_profile, names_by_key, normalise_name, profile_joints, rig_profiles
+from usdmotion.skeleton_names import strip_namespace  # noqa: F401 - its old import path
 
 
 class JointMapError(InputError):
@@ -53,9 +57,6 @@ class JointMap:
 
 
 # ----------------------------------------------------------------------------- files
-
-
-DATA = Path(__file__).resolve().parents[1] / "data"
 
 
 def _schema(name: str) -> dict:
@@ -113,57 +114,8 @@ def load_joint_map(path: str | Path) -> JointMap:
 
 
 # -------------------------------------------------------------------------- profiles
-
-
-@lru_cache(maxsize=1)
-def rig_profiles() -> dict[str, dict]:
-    """Built-in rig profiles by name (validated against ``rigprofile.schema.json``)."""
-    out = {}
-    for entry in sorted((DATA / "rigs").glob("*.json")):
-        if entry.name.endswith(".json"):
-            doc = json.loads(entry.read_text("utf-8"))
-            _validate(doc, "rigprofile.schema.json", f"usdmotion/data/rigs/{entry.name}")
-            out[doc["name"]] = doc
-    return out
-
-
-def strip_namespace(name: str) -> str:
-    """``"mixamorig:Hips"`` → ``"Hips"``."""
-    return name.rsplit(":", 1)[-1]
-
-
-def _lookup(names) -> dict[str, str]:
-    """Namespace-free name → actual name (first one wins)."""
-    table: dict[str, str] = {}
-    for n in names:
-        table.setdefault(strip_namespace(n), n)
-    return table
-
-
-def profile_joints(profile: dict, names) -> dict[str, str] | None:
-    """Canonical point → joint name of ``names`` if the skeleton fits ``profile``, else ``None``."""
-    table = _lookup(names)
-    if any(s not in table for s in profile["signature"]):
-        return None
-    resolved = {}
-    for point, candidates in profile["joints"].items():
-        candidates = [candidates] if isinstance(candidates, str) else candidates
-        hit = next((table[c] for c in candidates if c in table), None)
-        if hit is not None:
-            resolved[point] = hit
-        elif point not in profile["optional"]:
-            return None
-    return resolved
-
-
-def detect_profile(names) -> str | None:
-    """Name of the built-in profile a skeleton fits (most points resolved), or ``None``."""
-    best, best_count = None, 0
-    for name, profile in rig_profiles().items():
-        resolved = profile_joints(profile, names)
-        if resolved is not None and len(resolved) > best_count:
-            best, best_count = name, len(resolved)
-    return best
+# rig_profiles, profile_joints, detect_profile, strip_namespace and normalise_name live in
+# usdmotion.skeleton_names (shared with segmentation roles and body landmarks).
 
 
 def profile_map(source_profile: str, target_profile: str, source_names, target_names) -> dict[str, str]:
@@ -175,23 +127,6 @@ def profile_map(source_profile: str, target_profile: str, source_names, target_n
 
 
 # -------------------------------------------------------------------------- auto map
-
-_TOKENS = re.compile(r"[A-Z]+(?![a-z])|[A-Z]?[a-z]+|[0-9]+")
-_SIDES = {"left": "l", "l": "l", "right": "r", "r": "r"}
-
-
-def normalise_name(name: str) -> str:
-    """Comparable form of a joint name: no namespace, lower case, alphanumerics only, and
-    a first or last word ``left``/``l``/``right``/``r`` moved to the front as ``l``/``r``
-    (``LeftUpLeg``, ``upleg_L``, ``lUpLeg`` → ``lupleg``)."""
-    tokens = [t.lower() for t in _TOKENS.findall(strip_namespace(name))]
-    side = ""
-    for k in (0, -1):
-        if len(tokens) > 1 and tokens[k] in _SIDES:
-            side = _SIDES[tokens.pop(k)]
-            break
-    return side + "".join(tokens)
-
 
 def auto_map(source_names, target_names, target_end_sites=None) -> JointMap:
     """Map target joints to source joints automatically (see module docstring)."""
@@ -205,9 +140,7 @@ def auto_map(source_names, target_names, target_end_sites=None) -> JointMap:
     if sp and tp:
         return JointMap(profile_map(sp, tp, source_names, target_names), {}, f"rig profiles {sp} -> {tp}",
                         profiles=(sp, tp))
-    by_key: dict[str, str] = {}
-    for n in source_names:
-        by_key.setdefault(normalise_name(n), n)
+    by_key = names_by_key(source_names, normalise_name)
     pairs = {n: by_key[normalise_name(n)] for n in target_names if normalise_name(n) in by_key}
     return JointMap(pairs, {}, "normalised names")
 

@@ -6,9 +6,11 @@ many ways (``LeftForeArm``, ``LeftElbow``, ``lForeArm``, ``LowerArm_L``, ``lradi
 ``mixamorig:LeftForeArm``...), so roles are found in three steps:
 
 1. **Presets** for the rigs in the shared corpus (cgspeed MotionBuilder/3dsMax/DAZ, Bandai
-   Namco, Mixamo, CMU ASF names), used when every named joint exists.
+   Namco, Mixamo, CMU ASF names), used when every named joint exists: the ``presets`` of
+   the rig profiles in ``usdmotion/data/rigs/`` (see :mod:`usdmotion.skeleton_names`).
 2. **Guessing**: the *middle* joints of each limb (elbow, knee) are recognised by name
-   (side prefix/suffix stripped: ``Left``/``Right``, ``L``/``R``, ``l``/``r``, ``_L``...);
+   (:func:`~usdmotion.skeleton_names.parse_side`: side prefix/suffix stripped:
+   ``Left``/``Right``, ``L``/``R``, ``l``/``r``, ``_L``...);
    the rest follows from the hierarchy: the shoulder/hip is the elbow's/knee's parent, the
    wrist/ankle its child with the longest rest bone, the root the lowest common ancestor
    of the two hips, the chest that of the two shoulders.
@@ -20,15 +22,14 @@ what is missing and the joints that were looked at.
 
 from __future__ import annotations
 
-import re
 from collections.abc import Mapping
-
-import numpy as np
 
 from usdmotion.errors import InputError
 from usdmotion.motion import Motion
+from usdmotion.skeleton_names import (ROLE_POINTS, SIDES, common_ancestor, fitting_preset, longest_child,
+                                      middle_joint_candidates, preset_named, preset_names, preset_names_attribute)
+from usdmotion.skeleton_names import parse_side  # noqa: F401 - its old import path
 
-SIDES = ("left", "right")
 LIMB_ROLES = ("shoulder", "elbow", "wrist", "hip", "knee", "ankle")
 #: Every role, in a fixed order: ``root``, ``chest``, then ``left_shoulder`` ... ``right_ankle``.
 ROLES = ("root", "chest") + tuple(f"{side}_{r}" for side in SIDES for r in LIMB_ROLES)
@@ -40,134 +41,43 @@ LIMB_BONES = tuple(
                        ("thigh", "hip", "knee"), ("shank", "knee", "ankle"))
 )
 
-# Joint names of the rigs in the shared corpus; "{L}"/"{R}" are filled per side.
-_PRESETS: dict[str, dict[str, str]] = {
-    "cgspeed-mb": {"root": "Hips", "chest": "Spine1", "shoulder": "{S}Arm", "elbow": "{S}ForeArm",
-                   "wrist": "{S}Hand", "hip": "{S}UpLeg", "knee": "{S}Leg", "ankle": "{S}Foot"},
-    "cgspeed-max": {"root": "Hips", "chest": "Chest2", "shoulder": "{S}Shoulder", "elbow": "{S}Elbow",
-                    "wrist": "{S}Wrist", "hip": "{S}Hip", "knee": "{S}Knee", "ankle": "{S}Ankle"},
-    "daz": {"root": "hip", "chest": "chest", "shoulder": "{s}Shldr", "elbow": "{s}ForeArm",
-            "wrist": "{s}Hand", "hip": "{s}Thigh", "knee": "{s}Shin", "ankle": "{s}Foot"},
-    "bandai": {"root": "Hips", "chest": "Chest", "shoulder": "UpperArm_{X}", "elbow": "LowerArm_{X}",
-               "wrist": "Hand_{X}", "hip": "UpperLeg_{X}", "knee": "LowerLeg_{X}", "ankle": "Foot_{X}"},
-    "mixamo": {"root": "mixamorig:Hips", "chest": "mixamorig:Spine2", "shoulder": "mixamorig:{S}Arm",
-               "elbow": "mixamorig:{S}ForeArm", "wrist": "mixamorig:{S}Hand", "hip": "mixamorig:{S}UpLeg",
-               "knee": "mixamorig:{S}Leg", "ankle": "mixamorig:{S}Foot"},
-    "asf": {"root": "pelvis", "chest": "thorax", "shoulder": "{s}humerus", "elbow": "{s}radius",
-            "wrist": "{s}hand", "hip": "{s}femur", "knee": "{s}tibia", "ankle": "{s}foot"},
-}
-PRESET_NAMES = tuple(_PRESETS)
-# Further joints that identify each preset's rig, so a look-alike rig falls back to guessing.
-_SIGNATURES: dict[str, tuple[str, ...]] = {
-    "cgspeed-mb": ("LHipJoint", "RHipJoint", "LowerBack", "Neck1"),
-    "cgspeed-max": ("LHipJoint", "RHipJoint", "lowerback", "lowerneck"),
-    "daz": ("abdomen", "lButtock", "rButtock"),
-    "bandai": ("joint_Root", "Shoulder_L", "Shoulder_R"),
-    "mixamo": ("mixamorig:Spine1", "mixamorig:LeftShoulder"),
-    "asf": ("lclavicle", "rclavicle"),
-}
 
-# Base names (lower case, side and punctuation removed) of the middle joint of a limb.
-_ELBOW_NAMES = frozenset({"forearm", "elbow", "lowarm", "lowerarm", "armlower", "radius", "ulna", "forearmjnt"})
-_KNEE_NAMES = frozenset({"leg", "knee", "lowleg", "lowerleg", "leglower", "shin", "tibia", "calf", "shank", "crus"})
-_SIDE_WORD = re.compile(r"^(left|right)(.+)$|^(.+?)(left|right)$", re.IGNORECASE)
-_SIDE_SUFFIX = re.compile(r"^(.+?)[_.\- ]([lr])$", re.IGNORECASE)
-_SIDE_LETTER = re.compile(r"^([lr])[_.\- ]?(.+)$", re.IGNORECASE)
-
-
-def _base(name: str) -> str:
-    return re.sub(r"[^a-z0-9]", "", name.lower())
-
-
-def parse_side(name: str) -> tuple[str | None, str]:
-    """``(side, base)`` of a joint name: ``"mixamorig:LeftForeArm"`` → ``("left", "forearm")``.
-
-    ``side`` is ``None`` when the name carries none. A single-letter prefix (``lThigh``,
-    ``rradius``) counts only when the rest is a known limb name, so ``lowerback`` stays
-    side-less.
-    """
-    name = re.split(r"[:|]", name)[-1]
-    m = _SIDE_WORD.match(name)
-    if m:
-        word, rest = (m.group(1), m.group(2)) if m.group(1) else (m.group(4), m.group(3))
-        return word.lower(), _base(rest)
-    m = _SIDE_SUFFIX.match(name)
-    if m:
-        return ("left" if m.group(2).lower() == "l" else "right"), _base(m.group(1))
-    m = _SIDE_LETTER.match(name)
-    if m and _base(m.group(2)) in _ELBOW_NAMES | _KNEE_NAMES:
-        return ("left" if m.group(1).lower() == "l" else "right"), _base(m.group(2))
-    return None, _base(name)
+#: ``PRESET_NAMES``: the role presets in the order they are tried (read from the rig profiles on first use).
+__getattr__ = preset_names_attribute("roles", __name__)
 
 
 def _preset_roles(motion: Motion, preset: str) -> dict[str, str]:
-    table = _PRESETS[preset]
-    roles = {"root": table["root"], "chest": table["chest"]}
-    for side in SIDES:
-        fill = {"S": side.capitalize(), "s": side[0], "X": side[0].upper()}
-        for role in LIMB_ROLES:
-            roles[f"{side}_{role}"] = table[role].format(**fill)
-    return roles
+    """Role → joint name in role preset ``preset`` (whether or not ``motion`` has them)."""
+    return preset_named("roles", preset).joints(ROLES, ROLE_POINTS)
 
 
 def match_preset(motion: Motion) -> str | None:
-    """Name of the first preset all of whose joints exist in ``motion``, else ``None``."""
-    names = set(motion.joint_names)
-    for preset in _PRESETS:
-        if set(_preset_roles(motion, preset).values()) | set(_SIGNATURES[preset]) <= names:
-            return preset
-    return None
-
-
-def _ancestors(parents: np.ndarray, j: int) -> list[int]:
-    chain = [j]
-    while parents[chain[-1]] >= 0:
-        chain.append(int(parents[chain[-1]]))
-    return chain
-
-
-def _common_ancestor(parents: np.ndarray, a: int, b: int) -> int:
-    above_a = set(_ancestors(parents, a))
-    return next(j for j in _ancestors(parents, b) if j in above_a)
-
-
-def _limb_end(motion: Motion, joint: int) -> int | None:
-    """The child of ``joint`` with the longest rest offset (the distal end of its bone)."""
-    children = motion.children(joint)
-    if children.size == 0:
-        return None
-    lengths = np.linalg.norm(motion.offsets[children], axis=1)
-    return int(children[int(np.argmax(lengths))])
+    """Name of the first preset all of whose joints (and signature joints) exist in ``motion``, else ``None``."""
+    hit = fitting_preset("roles", motion.joint_names, ROLES, ROLE_POINTS)
+    return None if hit is None else hit[0].name
 
 
 def _guess_roles(motion: Motion) -> tuple[dict[str, int], list[str]]:
+    """Roles found by name and hierarchy (step 2), and the roles that could not be found."""
     found: dict[str, int] = {}
     missing: list[str] = []
-    parsed = [parse_side(n) for n in motion.joint_names]
-    for side in SIDES:
-        for middle, vocabulary, upper, lower in (("elbow", _ELBOW_NAMES, "shoulder", "wrist"),
-                                                  ("knee", _KNEE_NAMES, "hip", "ankle")):
-            hits = [j for j, (s, b) in enumerate(parsed) if s == side and b in vocabulary
-                    and not motion.end_sites[j]]
-            if not hits:
-                missing.append(f"{side}_{middle}")
-                continue
-            j = hits[0]  # the first in file order is the one nearest the root
-            found[f"{side}_{middle}"] = j
-            found[f"{side}_{upper}"] = int(motion.parents[j])
-            end = _limb_end(motion, j)
-            if end is None:
-                missing.append(f"{side}_{lower}")
-            else:
-                found[f"{side}_{lower}"] = end
-    if "left_hip" in found and "right_hip" in found:
-        found["root"] = _common_ancestor(motion.parents, found["left_hip"], found["right_hip"])
-    else:
-        missing.append("root")
-    if "left_shoulder" in found and "right_shoulder" in found:
-        found["chest"] = _common_ancestor(motion.parents, found["left_shoulder"], found["right_shoulder"])
-    else:
-        missing.append("chest")
+    for side, (middle, upper, lower, _), hits in middle_joint_candidates(motion.joint_names, motion.end_sites):
+        if not hits:
+            missing.append(f"{side}_{middle}")
+            continue
+        j = hits[0]  # the first in file order is the one nearest the root
+        found[f"{side}_{middle}"] = j
+        found[f"{side}_{upper}"] = int(motion.parents[j])
+        end = longest_child(motion.parents, motion.offsets, j)
+        if end is None:
+            missing.append(f"{side}_{lower}")
+        else:
+            found[f"{side}_{lower}"] = end
+    for centre, limb in (("root", "hip"), ("chest", "shoulder")):  # where the legs / arms branch off
+        if f"left_{limb}" in found and f"right_{limb}" in found:
+            found[centre] = common_ancestor(motion.parents, found[f"left_{limb}"], found[f"right_{limb}"])
+        else:
+            missing.append(centre)
     return found, missing
 
 
@@ -190,8 +100,8 @@ def find_roles(motion: Motion, overrides: Mapping[str, str] | None = None, prese
     bad_roles = sorted(set(overrides) - set(ROLES))
     if bad_roles:
         raise InputError(source, f"unknown role {bad_roles[0]!r} (roles: {', '.join(ROLES)})")
-    if preset is not None and preset not in _PRESETS:
-        raise InputError(source, f"unknown role preset {preset!r} (presets: {', '.join(PRESET_NAMES)})")
+    if preset is not None and preset not in preset_names("roles"):
+        raise InputError(source, f"unknown role preset {preset!r} (presets: {', '.join(preset_names('roles'))})")
     index = {n: j for j, n in enumerate(motion.joint_names)}
     chosen = preset or match_preset(motion)
     if chosen is not None:

@@ -1,0 +1,163 @@
+"""Joint recognition keeps its behaviour: roles, landmarks, bend triples and automatic
+joint maps on every rig of the shared corpus equal the record made before
+``ops/roles.py``, ``anthropometry.py`` and ``ops/jointmap.py`` shared one core,
+:mod:`usdmotion.skeleton_names` (``tests/data/skeleton_names_golden.json``; how it was
+made: ``tests/skeleton_names_record.py``).
+
+The one side parser is the union of the two it replaced, so two renamed copies of the
+DAZ rig that are not part of the corpus are now recognised further, on purpose: a
+``grp|`` namespace (the landmark parser kept it in the name) and capital one-letter
+sides before a limb word (``Lhand``: the role parser took ``Lforearm`` only). For them
+the test checks that they are recognised exactly like the rig they were renamed from.
+"""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from conftest import SHARED_DATA, TEST_DATA
+from skeleton_names_record import VARIANTS, record_maps, record_names, record_skeleton, skeletons_of
+
+from usdmotion import anthropometry as A
+from usdmotion.ops import roles as R
+from usdmotion.ops.jointmap import auto_map, detect_profile, load_joint_map, normalise_name, resolve_map
+from usdmotion.skeleton_names import parse_side, profile_joints, rig_presets, rig_profiles
+
+GOLDEN = json.loads((TEST_DATA / "skeleton_names_golden.json").read_text("utf-8"))
+DAZ = "cmu/daz_10_01_soccer_kick.bvh"
+#: Record fields that the union side parser changes on purpose, per renamed rig.
+WIDENED = {"variant:namespace_pipe": {"landmarks", "landmarks_guessed", "de_leva", "profile", "profile_joints"},
+           "variant:upper_case_letter": {"landmarks", "landmarks_guessed", "de_leva"}}
+#: Names outside the corpus whose capital side letter now counts before any limb word.
+CAPITAL_SIDES = {"Lfoot": ("left", "foot"), "Lhand": ("left", "hand"), "Lshldr": ("left", "shldr"),
+                 "Lthigh": ("left", "thigh"), "Rfoot": ("right", "foot"), "Rhand": ("right", "hand"),
+                 "Rshldr": ("right", "shldr"), "Rthigh": ("right", "thigh")}
+
+
+def plain(value):
+    """``value`` as JSON reads it back (tuples → lists)."""
+    return json.loads(json.dumps(value))
+
+
+@pytest.fixture(scope="module")
+def skeletons():
+    if not SHARED_DATA.is_dir():
+        pytest.skip(f"shared data not found under {SHARED_DATA} (set USDMOTION_SHARED_DATA)")
+    return skeletons_of(SHARED_DATA)
+
+
+@pytest.mark.parametrize("label", sorted(GOLDEN["skeletons"]))
+def test_recognition_on_every_rig_is_unchanged(skeletons, label):
+    if label not in skeletons:
+        pytest.skip(f"{label} not found under {SHARED_DATA}")
+    now, before = plain(record_skeleton(skeletons[label])), GOLDEN["skeletons"][label]
+    same = set(before) - WIDENED.get(label, set())
+    assert {k: now[k] for k in same} == {k: before[k] for k in same}
+
+
+@pytest.mark.parametrize("label", sorted(WIDENED))
+def test_renamed_rigs_are_recognised_like_the_original(skeletons, label):
+    relative = dict((f"variant:{v[0]}", v[1]) for v in VARIANTS)[label]
+    if relative not in skeletons:
+        pytest.skip(f"{relative} not found under {SHARED_DATA}")
+    original, renamed = skeletons[relative], skeletons[label]
+    rename = dict(zip(original.joint_names, renamed.joint_names))
+    guessed = {k: rename.get(v) for k, v in plain(record_skeleton(original))["landmarks_guessed"].items()}
+    now, before = plain(record_skeleton(renamed)), GOLDEN["skeletons"][label]
+    assert now["landmarks_guessed"] == guessed
+    assert now["landmarks"] == {"found": guessed, "how": "guessed from joint names"}
+    assert "error" not in now["de_leva"] and "error" in before["de_leva"]  # was: shoulders... not found
+    if label == "variant:namespace_pipe":
+        assert now["profile"] == "daz" and before["profile"] is None
+        resolved = profile_joints(rig_profiles()["daz"], original.joint_names)
+        assert now["profile_joints"]["daz"] == {k: rename[v] for k, v in resolved.items()}
+
+
+def test_name_parsing_is_unchanged_where_either_parser_found_a_side():
+    now = plain(record_names(GOLDEN["names"]))
+    for name, before in GOLDEN["names"].items():
+        if "|" in name:  # a group namespace is dropped now by every parser, as ":" was
+            plain_name = name.split("|")[-1]
+            assert now[name]["parse_side"] == now[plain_name]["parse_side"], name
+            assert now[name]["normalise_name"] == GOLDEN["names"][plain_name]["normalise_name"], name
+            continue
+        roles_side, landmark_side = before["parse_side"], before["side_and_base"]
+        expected = (roles_side if roles_side[0] else landmark_side if landmark_side[0]
+                    else list(CAPITAL_SIDES.get(name, (None, landmark_side[1]))))
+        assert now[name]["parse_side"] == now[name]["side_and_base"] == expected, name
+        assert now[name]["normalise_name"] == before["normalise_name"], name
+
+
+def test_automatic_joint_maps_are_unchanged(skeletons):
+    maps = plain(record_maps(skeletons))
+    recorded = {k: v for k, v in GOLDEN["maps"].items() if "variant:namespace_pipe" not in k}  # checked below
+    expected = {k: v for k, v in recorded.items() if all(s in skeletons for s in k.split(" -> "))}
+    assert len(expected) > 0.9 * len(recorded), "most of the corpus is missing"
+    assert {k: maps.get(k) for k in expected} == expected
+
+
+def test_group_namespace_maps_like_the_rig_without_it(skeletons):
+    if DAZ not in skeletons:
+        pytest.skip(f"{DAZ} not found under {SHARED_DATA}")
+    daz, grouped = skeletons[DAZ], skeletons["variant:namespace_pipe"]
+    rename = dict(zip(daz.joint_names, grouped.joint_names))
+    for label, other in skeletons.items():
+        if other.joint_names in (daz.joint_names, grouped.joint_names):
+            continue
+        plain_map, grouped_map = auto_map(other.joint_names, daz.joint_names, daz.end_sites), \
+            auto_map(other.joint_names, grouped.joint_names, grouped.end_sites)
+        assert grouped_map.how == plain_map.how, label
+        assert grouped_map.pairs == {rename[t]: s for t, s in plain_map.pairs.items()}, label
+        back, grouped_back = auto_map(daz.joint_names, other.joint_names), auto_map(grouped.joint_names,
+                                                                                   other.joint_names)
+        assert grouped_back.pairs == {t: rename[s] for t, s in back.pairs.items()}, label
+
+
+def test_presets_are_tried_in_the_documented_order():
+    assert R.PRESET_NAMES == ("cgspeed-mb", "cgspeed-max", "daz", "bandai", "mixamo", "asf")
+    assert A.PRESET_NAMES == ("cgspeed-mb", "cgspeed-max", "daz", "bandai")
+    mixamo = next(p for p in rig_presets("roles") if p.name == "mixamo")
+    assert mixamo.points["l_forearm"] == "mixamorig:LeftForeArm" and "mixamorig:Spine1" in mixamo.signature
+    daz = next(p for p in rig_presets("landmarks") if p.name == "daz")
+    assert daz.points["head_top"] == "leftEye_End" and daz.points["neck_base"] == "neck"
+
+
+def test_asf_profile_is_named_not_detected(shared_file, tmp_path):
+    from usdmotion.io import read_motion
+
+    karate = read_motion(shared_file("other_rigs/ad_karate_mawashigeri.bvh"))
+    resolved = profile_joints(rig_profiles()["asf"], karate.joint_names)
+    assert resolved["l_forearm"] == "lradius" and resolved["chest"] == "thorax"
+    assert detect_profile(karate.joint_names) is None  # automatic maps stay on normalised names
+    cmu = read_motion(shared_file("cmu/cgspeed_12_01_walk.bvh"))
+    path = tmp_path / "m.json"
+    path.write_text(json.dumps({"source_profile": "cmu_cgspeed", "target_profile": "asf"}))
+    src, _, jmap = resolve_map(load_joint_map(path), cmu.joint_names, karate.joint_names)
+    assert cmu.joint_names[src[karate.joint_index("ltibia")]] == "LeftLeg"
+    assert cmu.joint_names[src[karate.joint_index("rhumerus")]] == "RightArm"
+
+
+@pytest.mark.parametrize("name, side_base, key", [
+    ("grp|LeftForeArm", ("left", "forearm"), "lforearm"), ("rig:Knee.R", ("right", "knee"), "rknee"),
+    ("lhandIK", ("left", "handik"), "lhandik"), ("Rtibia", ("right", "tibia"), "rtibia"),
+    ("L_Hand", ("left", "hand"), "lhand"), ("lowerback", (None, "lowerback"), "lowerback"),
+])
+def test_one_side_parser_for_roles_landmarks_and_maps(name, side_base, key):
+    assert parse_side(name) == R.parse_side(name) == A.side_and_base(name) == side_base
+    assert normalise_name(name) == key
+
+
+def test_signature_joints_gate_the_role_preset_only(shared_file):
+    """A look-alike rig (one signature joint renamed) is guessed for roles; landmark presets
+    need only their own joints (both as before the presets became data)."""
+    import dataclasses
+
+    from usdmotion.io import read_motion
+
+    walk = read_motion(shared_file("cmu/cgspeed_12_01_walk.bvh"))
+    assert R.match_preset(walk) == "cgspeed-mb" and A.find_landmarks(walk)[1] == "preset cgspeed-mb"
+    lookalike = dataclasses.replace(walk, joint_names=tuple("RHipJoint2" if n == "RHipJoint" else n
+                                                            for n in walk.joint_names))
+    assert R.match_preset(lookalike) is None
+    assert A.find_landmarks(lookalike)[1] == "preset cgspeed-mb"
