@@ -14,23 +14,9 @@ VENV=.venv-blender
 
 # Shared libraries the bpy wheel links against (X11 client libs, GL, xkbcommon) even
 # when running headless (from `ldd bpy/__init__.so`; their own dependencies come along).
-need_apt=()
-for pkg in libx11-6 libxext6 libxfixes3 libxi6 libxrender1 libxkbcommon0 libsm6 libice6 libgl1; do
-  dpkg -s "$pkg" >/dev/null 2>&1 || need_apt+=("$pkg")
-done
-if [ ${#need_apt[@]} -gt 0 ]; then
-  echo "setup_blender: installing ${need_apt[*]} (libraries bpy links against)"
-  SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO="sudo"
-  $SUDO apt-get update -qq && $SUDO apt-get install -y -qq "${need_apt[@]}" >/dev/null
-fi
-
-PY=${PYTHON:-python3.11}
-command -v "$PY" >/dev/null 2>&1 || PY=python3
-"$PY" - <<'PYEOF'
-import sys
-if sys.version_info[:2] != (3, 11):
-    sys.exit(f"setup_blender: bpy 4.5 LTS needs Python 3.11, found {sys.version.split()[0]}")
-PYEOF
+source scripts/_lib.sh
+ensure_apt "libraries bpy links against" libx11-6 libxext6 libxfixes3 libxi6 libxrender1 libxkbcommon0 libsm6 libice6 libgl1
+PY=$(python311 "bpy 4.5 LTS")
 
 [ -x "$VENV/bin/python" ] || "$PY" -m venv "$VENV"
 stamp="$VENV/.bpy-installed"
