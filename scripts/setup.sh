@@ -6,9 +6,8 @@ cd "$(dirname "$0")/.."
 
 source scripts/_lib.sh
 ensure_apt "headless OpenGL via EGL" libegl1 libegl-mesa0 libgl1-mesa-dri libgles2
-PY=$(python311 "usdmotion (jax 0.10.2 and Blender's bpy pin it)")
-
 if [ ! -x .venv/bin/python ]; then
+  PY=$(python311 "usdmotion (jax 0.10.2 and Blender's bpy pin it)")
   "$PY" -m venv .venv
 fi
 stamp=.venv/.usdmotion-installed

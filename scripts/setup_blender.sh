@@ -16,9 +16,7 @@ VENV=.venv-blender
 # when running headless (from `ldd bpy/__init__.so`; their own dependencies come along).
 source scripts/_lib.sh
 ensure_apt "libraries bpy links against" libx11-6 libxext6 libxfixes3 libxi6 libxrender1 libxkbcommon0 libsm6 libice6 libgl1
-PY=$(python311 "bpy 4.5 LTS")
-
-[ -x "$VENV/bin/python" ] || "$PY" -m venv "$VENV"
+[ -x "$VENV/bin/python" ] || { PY=$(python311 "bpy 4.5 LTS"); "$PY" -m venv "$VENV"; }
 stamp="$VENV/.bpy-installed"
 if [ ! -f "$stamp" ] || [ "$0" -nt "$stamp" ]; then
   "$VENV/bin/python" -m pip install -q --upgrade pip
