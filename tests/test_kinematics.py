@@ -97,3 +97,17 @@ def test_motion_is_immutable_and_validates_shapes():
         dataclasses.replace(m, fps=0.0)
     longer = m.with_frames(np.tile(m.rotations, (3, 1, 1)), np.zeros((3, 3)))
     assert longer.n_frames == 3 and longer.source_channels is None
+
+
+def test_sliced_keeps_the_euler_hint_of_the_kept_frames():
+    from usdmotion.io.bvh import motion_from_bvh, parse_bvh
+
+    text = ("HIERARCHY\nROOT a\n{\nOFFSET 0 0 0\nCHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation\n"
+            "JOINT b\n{\nOFFSET 0 1 0\nCHANNELS 3 Zrotation Xrotation Yrotation\n}\n}\nMOTION\nFrames: 4\n"
+            "Frame Time: 0.1\n" + "".join(f"{k} 0 0 {10 * k} 0 0 {370 + k} 0 0\n" for k in range(4)))
+    motion = motion_from_bvh(parse_bvh(text))
+    part = motion.sliced(1, 3)
+    assert part.n_frames == 2
+    assert np.array_equal(part.rotations, motion.rotations[1:3])
+    assert np.array_equal(part.root_translation, motion.root_translation[1:3])
+    assert np.array_equal(part.source_channels, motion.source_channels[1:3])  # 371°, 372° survive a write

@@ -236,9 +236,20 @@ class Motion:
             source_channels=None,
         )
 
-    def rest_root_position(self) -> np.ndarray:
-        """Root position ``(3,)`` of the rest pose (the root OFFSET)."""
-        return self.offsets[0]
+    def sliced(self, start: int | None = None, stop: int | None = None) -> Motion:
+        """Frames ``start:stop`` (Python slice, unchecked) as a new motion.
+
+        Unlike :meth:`with_frames` it keeps ``source_channels`` for those frames, so a
+        clip written as BVH repeats the input's numbers.
+        """
+        frames = slice(start, stop)
+        return dataclasses.replace(
+            self,
+            rotations=self.rotations[frames],
+            root_translation=self.root_translation[frames],
+            joint_translations=None if self.joint_translations is None else self.joint_translations[frames],
+            source_channels=None if self.source_channels is None else self.source_channels[frames],
+        )
 
 
 def is_unit_quaternion(q: np.ndarray) -> bool:

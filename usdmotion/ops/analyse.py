@@ -100,11 +100,7 @@ class Kinematics:
 
 def slice_frames(motion: Motion, start: int = 0, stop: int | None = None) -> Motion:
     """Frames ``start:stop`` of a motion, keeping ``source_channels`` (the Euler hint)."""
-    sl = slice(start, stop)
-    jt = None if motion.joint_translations is None else motion.joint_translations[sl]
-    sc = None if motion.source_channels is None else motion.source_channels[sl]
-    return dataclasses.replace(motion, rotations=motion.rotations[sl], root_translation=motion.root_translation[sl],
-                               joint_translations=jt, source_channels=sc)
+    return motion.sliced(start, stop)
 
 
 def _continuous(q: np.ndarray) -> np.ndarray:

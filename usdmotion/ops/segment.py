@@ -293,10 +293,4 @@ def clip(motion: Motion, first: int, last: int) -> Motion:
     """
     if not 0 <= first <= last < motion.n_frames:
         raise ValueError(f"clip {first}..{last} is outside 0..{motion.n_frames - 1}")
-    sl = slice(first, last + 1)
-    jt = None if motion.joint_translations is None else motion.joint_translations[sl]
-    sc = None if motion.source_channels is None else motion.source_channels[sl]
-    import dataclasses
-
-    return dataclasses.replace(motion, rotations=motion.rotations[sl], root_translation=motion.root_translation[sl],
-                               joint_translations=jt, source_channels=sc)
+    return motion.sliced(first, last + 1)

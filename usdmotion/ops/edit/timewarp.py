@@ -9,7 +9,6 @@ motion has no velocity kinks at the original frames.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 
 import numpy as np
@@ -194,8 +193,4 @@ def resample(motion: Motion, fps: float, interp: str = "cubic") -> Motion:
 def trim(motion: Motion, start: int | None = None, stop: int | None = None) -> Motion:
     """Frames ``[start, stop)`` (negative numbers count from the end); keeps the Euler hint."""
     lo, hi = frame_range(motion, start, stop, "trim range")
-    sc = None if motion.source_channels is None else motion.source_channels[lo:hi]
-    jt = None if motion.joint_translations is None else motion.joint_translations[lo:hi]
-    return dataclasses.replace(motion, rotations=motion.rotations[lo:hi],
-                               root_translation=motion.root_translation[lo:hi],
-                               joint_translations=jt, source_channels=sc)
+    return motion.sliced(lo, hi)
