@@ -6,10 +6,7 @@ from types import SimpleNamespace
 
 #: Tolerances, by purpose.
 tol = SimpleNamespace(
-    quat_norm=1e-6,          # |‖q‖ - 1| accepted as a unit quaternion
     small_angle=1e-8,        # radians; below this, log/exp use Taylor branches
-    translation_equal=1e-6,  # relative; per-frame translation equal to the OFFSET
-    gimbal=1e-7,             # |cos(middle angle)| treated as gimbal lock
 )
 
 #: Metres per unit for the names accepted by ``--units``.
@@ -23,7 +20,6 @@ METERS_PER_UNIT = {
     "asf": 0.0254 / 0.45,
 }
 
-DEFAULT_UNITS = "cm"
 UP_AXES = ("Y", "Z")
 
 #: Largest frame count accepted from a file header before we call it absurd.

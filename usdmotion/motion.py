@@ -13,7 +13,7 @@ from typing import Literal
 
 import numpy as np
 
-from usdmotion.constants import UP_AXES, tol
+from usdmotion.constants import UP_AXES
 from usdmotion.errors import TopologyError
 
 RootOffset = Literal["add", "replace"]
@@ -250,8 +250,3 @@ class Motion:
             joint_translations=None if self.joint_translations is None else self.joint_translations[frames],
             source_channels=None if self.source_channels is None else self.source_channels[frames],
         )
-
-
-def is_unit_quaternion(q: np.ndarray) -> bool:
-    """True if every quaternion in ``q (..., 4)`` has norm 1 within ``tol.quat_norm``."""
-    return bool(np.all(np.abs(np.linalg.norm(q, axis=-1) - 1.0) < tol.quat_norm))
