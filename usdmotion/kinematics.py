@@ -144,11 +144,17 @@ def compose_transforms(rotations, translations):
     return xp.concatenate([top, bottom], axis=-2)
 
 
-def rest_positions(motion: Motion) -> np.ndarray:
-    """World joint positions ``(J, 3)`` of the rest pose (identity rotations, OFFSETs)."""
+def rest_pose(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
+    """``(world_rotations (J, 4), world_positions (J, 3))`` of the rest pose: OFFSETs with
+    identity rotations (the BVH rest pose, USD's ``bindTransforms``)."""
     identity = np.zeros((motion.n_joints, 4))
     identity[:, 0] = 1.0
-    return fk_arrays(identity, motion.offsets, motion.parents)[1]
+    return fk_arrays(identity, motion.offsets, motion.parents)
+
+
+def rest_positions(motion: Motion) -> np.ndarray:
+    """World joint positions ``(J, 3)`` of the rest pose (identity rotations, OFFSETs)."""
+    return rest_pose(motion)[1]
 
 
 def skeleton_height(motion: Motion, frame: int | None = None) -> float:

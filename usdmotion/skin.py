@@ -36,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from usdmotion.errors import UsdMotionError
-from usdmotion.kinematics import compose_transforms, fk_arrays, local_translations
+from usdmotion.kinematics import compose_transforms, fk_arrays, local_translations, rest_pose
 from usdmotion.motion import Motion
 
 #: Influences (joints) per vertex; UsdSkel's ``elementSize`` of the skinning primvars.
@@ -143,11 +143,7 @@ def _part_radii(name: str, parent_name: str | None = None) -> tuple[float, float
     return PART_RADII[k][1], PART_RADII[k][2]
 
 
-def rest_world(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
-    """``(rotations (J,4), positions (J,3))`` of the rest (bind) pose: OFFSETs, no rotation."""
-    identity = np.zeros((motion.n_joints, 4))
-    identity[:, 0] = 1.0
-    return fk_arrays(identity, motion.offsets, motion.parents)
+rest_world = rest_pose  # ``(rotations (J,4), positions (J,3))`` of the rest (bind) pose
 
 
 def bind_transforms(motion: Motion) -> np.ndarray:

@@ -30,7 +30,7 @@ import numpy as np
 
 from usdmotion.errors import OutputError, UsdMotionWarning, UsdReadError
 from usdmotion.io.atomic import atomic_output
-from usdmotion.kinematics import compose_transforms, fk_arrays, local_translations
+from usdmotion.kinematics import compose_transforms, local_translations, rest_pose
 from usdmotion.motion import Motion
 from usdmotion.rotations import matrix_to_quat, quat_mul, quat_rotate, wxyz_to_xyzw
 
@@ -76,8 +76,7 @@ def _rest_transforms(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
     """``(local (J,4,4), world (J,4,4))`` rest transforms: OFFSETs, identity rotations."""
     identity = np.zeros((motion.n_joints, 4))
     identity[:, 0] = 1.0
-    world_q, world_p = fk_arrays(identity, motion.offsets, motion.parents)
-    return compose_transforms(identity, motion.offsets), compose_transforms(world_q, world_p)
+    return compose_transforms(identity, motion.offsets), compose_transforms(*rest_pose(motion))
 
 
 def _stage_name(path: Path, name: str | None) -> str:
