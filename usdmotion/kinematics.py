@@ -14,16 +14,14 @@ from functools import lru_cache
 
 import numpy as np
 
-from usdmotion.motion import Motion
+from usdmotion.motion import Motion, joint_depths
 from usdmotion.rotations import array_namespace, quat_to_matrix
 
 
 @lru_cache(maxsize=256)
 def _levels_cached(parents_key: tuple[int, ...]) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
     parents = np.asarray(parents_key)
-    depth = np.zeros(len(parents), dtype=np.int64)
-    for j in range(1, len(parents)):
-        depth[j] = depth[parents[j]] + 1
+    depth = joint_depths(parents)
     levels = []
     previous = None
     for d in range(int(depth.max()) + 1):

@@ -54,6 +54,16 @@ def joint_depths(parents: np.ndarray) -> np.ndarray:
     return depth
 
 
+def subtree_indices(parents: np.ndarray, joint: int) -> np.ndarray:
+    """Sorted indices ``(K,)`` of ``joint`` and all its descendants (parents before children)."""
+    inside = np.zeros(len(parents), bool)
+    inside[joint] = True
+    for j in range(joint + 1, len(parents)):  # parents come first: one pass
+        if parents[j] >= 0 and inside[parents[j]]:
+            inside[j] = True
+    return np.flatnonzero(inside)
+
+
 def _frozen(a, dtype, shape_tail: tuple[int, ...], name: str) -> np.ndarray:
     """A read-only array of ``dtype``. An array that is already read-only and owns its data
     (e.g. another Motion's) is shared, not copied: nothing can change it."""
@@ -213,12 +223,7 @@ class Motion:
 
     def subtree(self, joint: int) -> np.ndarray:
         """Sorted indices of ``joint`` and all its descendants."""
-        inside = np.zeros(self.n_joints, bool)
-        inside[joint] = True
-        for j in range(joint + 1, self.n_joints):  # parents come first: one pass
-            if self.parents[j] >= 0 and inside[self.parents[j]]:
-                inside[j] = True
-        return np.flatnonzero(inside)
+        return subtree_indices(self.parents, joint)
 
     def with_frames(self, rotations: np.ndarray, root_translation: np.ndarray,
                     joint_translations: np.ndarray | None = None, fps: float | None = None) -> Motion:

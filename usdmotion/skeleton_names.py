@@ -37,6 +37,8 @@ from types import MappingProxyType
 
 import numpy as np
 
+from usdmotion.motion import subtree_indices
+
 SIDES = ("left", "right")
 
 #: Base names (lower case, side and punctuation removed) of the middle joint of an arm.
@@ -315,12 +317,7 @@ def children_map(parents: np.ndarray) -> dict[int, list[int]]:
 
 def descendants(parents: np.ndarray, joint: int) -> list[int]:
     """Sorted indices of the joints below ``joint`` (not ``joint`` itself)."""
-    inside = np.zeros(len(parents), bool)
-    inside[joint] = True
-    for j in range(joint + 1, len(parents)):  # parents come first: one pass
-        if parents[j] >= 0 and inside[parents[j]]:
-            inside[j] = True
-    return [int(j) for j in np.flatnonzero(inside) if j != joint]
+    return [int(j) for j in subtree_indices(parents, joint) if j != joint]
 
 
 def longest_child(parents: np.ndarray, offsets: np.ndarray, joint: int) -> int | None:
