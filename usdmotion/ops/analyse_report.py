@@ -39,14 +39,7 @@ def _columns(kin: Kinematics, idx: list[int]) -> dict[str, np.ndarray]:
         return np.ascontiguousarray(a[:, idx]).reshape(n, -1)
 
     cols: dict[str, np.ndarray] = {}
-    for name, array in (("pos", kin.positions), ("vel", kin.velocities), ("acc", kin.accelerations)):
-        values = flat(array)
-        for k, axis in enumerate(AXES):
-            cols[f"{name}_{axis}"] = values[:, k]
-        if name == "vel":
-            cols["speed"] = np.linalg.norm(values, axis=1)
-        if name == "acc":
-            cols["acc"] = np.linalg.norm(values, axis=1)
+    _motion_columns(cols, flat(kin.positions), flat(kin.velocities), flat(kin.accelerations))
     cols["euler_order"] = np.tile(np.asarray([kin.euler_orders[j] for j in idx], dtype="U3"), kin.n_frames)
     euler = flat(kin.euler)
     for k, axis in enumerate(AXES):
@@ -64,6 +57,16 @@ def _columns(kin: Kinematics, idx: list[int]) -> dict[str, np.ndarray]:
     return cols
 
 
+def _motion_columns(cols: dict[str, np.ndarray], pos: np.ndarray, vel: np.ndarray, acc: np.ndarray) -> None:
+    """Set ``pos_{x,y,z}``, ``vel_{x,y,z}``, ``speed``, ``acc_{x,y,z}``, ``acc`` (in that
+    column order) from ``(N, 3)`` rows."""
+    for name, values, norm in (("pos", pos, None), ("vel", vel, "speed"), ("acc", acc, "acc")):
+        for k, axis in enumerate(AXES):
+            cols[f"{name}_{axis}"] = values[:, k]
+        if norm is not None:
+            cols[norm] = np.linalg.norm(values, axis=1)
+
+
 def _com_columns(kin: Kinematics, template: dict[str, np.ndarray]) -> tuple[list[str], dict[str, np.ndarray]]:
     """Rows for the whole-body COM and every segment COM (other columns NaN)."""
     names = ["COM"] + [f"COM:{s}" for s in kin.body.segment_names]
@@ -75,14 +78,7 @@ def _com_columns(kin: Kinematics, template: dict[str, np.ndarray]) -> tuple[list
     cols = {}
     for key, value in template.items():
         cols[key] = np.full(n, np.nan) if value.dtype.kind == "f" else np.full(n, "", dtype=value.dtype)
-    for name, array in (("pos", pos), ("vel", vel), ("acc", acc)):
-        values = array.reshape(n, 3)
-        for k, axis in enumerate(AXES):
-            cols[f"{name}_{axis}"] = values[:, k]
-        if name == "vel":
-            cols["speed"] = np.linalg.norm(values, axis=1)
-        if name == "acc":
-            cols["acc"] = np.linalg.norm(values, axis=1)
+    _motion_columns(cols, pos.reshape(n, 3), vel.reshape(n, 3), acc.reshape(n, 3))
     if kin.momentum is not None:
         momentum = np.zeros((kin.n_frames, len(names), 3)) * np.nan
         momentum[:, 0] = kin.momentum
