@@ -26,7 +26,6 @@ from pathlib import Path
 import numpy as np
 
 from usdmotion.errors import InputError
-from usdmotion.resources import resource_path
 from usdmotion.skeleton_names import detect_profile, names_by_key, normalise_name, profile_joints, rig_profiles
 from usdmotion.skeleton_names import strip_namespace  # noqa: F401 - its old import path
 
@@ -59,14 +58,12 @@ class JointMap:
 # ----------------------------------------------------------------------------- files
 
 
-def _schema(name: str) -> dict:
-    return json.loads(resource_path("schemas", name).read_text("utf-8"))
-
-
 def _validate(doc, schema_name: str, path) -> None:
     import jsonschema
 
-    validator = jsonschema.Draft202012Validator(_schema(schema_name))
+    from usdmotion.schemas import schema
+
+    validator = jsonschema.Draft202012Validator(schema(schema_name))
     errors = sorted(validator.iter_errors(doc), key=lambda e: list(e.absolute_path))
     if errors:
         error = errors[0]
@@ -88,7 +85,7 @@ def load_joint_map(path: str | Path) -> JointMap:
         doc = json.loads(text)
     except json.JSONDecodeError as exc:
         raise JointMapError(path, f"not valid JSON: {exc.msg}", exc.lineno, exc.colno) from None
-    _validate(doc, "jointmap.schema.json", path)
+    _validate(doc, "jointmap", path)
     pairs: dict[str, str | None] = {}
     weights: dict[str, float] = {}
     for target, value in doc.get("joints", {}).items():
