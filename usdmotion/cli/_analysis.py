@@ -9,7 +9,7 @@ from typing import Annotated
 import numpy as np
 import typer
 
-from usdmotion.cli._options import RootOffsetChoice, UpAxisChoice
+from usdmotion.cli._options import RootOffsetChoice, UpAxisChoice, parse_start_stop
 
 SPEC_SUFFIXES = (".json", ".yaml", ".yml")
 
@@ -71,14 +71,7 @@ def frame_slice(spec: str | None, n_frames: int) -> tuple[int, int]:
     """``(start, stop)`` from ``"START:STOP"`` (either may be empty or negative)."""
     if spec is None:
         return 0, n_frames
-    parts = spec.split(":")
-    try:
-        if len(parts) != 2:
-            raise ValueError
-        start, stop = (int(p) if p.strip() else None for p in parts)
-    except ValueError:
-        raise ValueError(f"--frames: {spec!r} is not START:STOP (e.g. 1: or 100:400)") from None
-    start, stop, _ = slice(start, stop).indices(n_frames)
+    start, stop, _ = slice(*parse_start_stop(spec)).indices(n_frames)
     if stop - start < 2:
         raise ValueError(f"--frames {spec} leaves {max(stop - start, 0)} of {n_frames} frames; analysis needs 2")
     return start, stop

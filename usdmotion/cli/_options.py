@@ -41,6 +41,20 @@ IgnoreJointPositions = Annotated[bool, typer.Option(
 Json = Annotated[bool, typer.Option("--json", help="Print JSON instead of a table.")]
 
 
+def parse_start_stop(text: str | None) -> tuple[int | None, int | None]:
+    """``(start, stop)`` of a ``--frames START:STOP`` option; either side may be empty."""
+    if text is None:
+        return None, None
+    parts = text.split(":")
+    try:
+        if len(parts) != 2:
+            raise ValueError
+        start, stop = (int(p) if p.strip() else None for p in parts)
+    except ValueError:
+        raise ValueError(f"--frames: {text!r} is not START:STOP (e.g. 1: or 100:400)") from None
+    return start, stop
+
+
 def read_input(path: Path, units: str | None, up_axis: UpAxisChoice | None,
                root_offset: RootOffsetChoice = RootOffsetChoice.auto, lenient: bool = False,
                ignore_joint_positions: bool = False):

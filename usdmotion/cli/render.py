@@ -7,7 +7,8 @@ from typing import Annotated
 
 import typer
 
-from usdmotion.cli._options import InputPath, Lenient, RootOffset, RootOffsetChoice, UpAxis, Units, read_input
+from usdmotion.cli._options import (InputPath, Lenient, RootOffset, RootOffsetChoice, UpAxis, Units, parse_start_stop,
+                                    read_input)
 from usdmotion.cli.app import app
 
 Opt = typer.Option
@@ -19,7 +20,7 @@ def render(
     output: Annotated[Path, typer.Argument(help="Video (.mp4) or image sequence pattern (frames/####.png, "
                                                 ".jpg, .exr = linear floats).", show_default=False)],
     size: Annotated[str, Opt(help="Image size WIDTHxHEIGHT.")] = "1280x720",
-    frames: Annotated[str | None, Opt(help="Source frame range START:END (end exclusive).")] = None,
+    frames: Annotated[str | None, Opt(help="Source frame range START:STOP (stop exclusive).")] = None,
     fps: Annotated[float | None, Opt(help="Output frame rate (default: the motion's, at most 60).")] = None,
     speed: Annotated[float, Opt(help="Playback speed (0.25 = 4x slow motion).")] = 1.0,
     camera: Annotated[str, Opt(help="Preset (side, front, top, follow, orbit) or a USD camera: "
@@ -44,7 +45,7 @@ def render(
     from usdmotion.render import RenderOptions, output_frames, render_motion
 
     width, height = _size(size)
-    start, end = _range(frames)
+    start, end = parse_start_stop(frames)
     motion = read_input(source, units, up_axis, root_offset, lenient)
     other = read_input(compare, units, up_axis, root_offset, lenient) if compare else None
     options = RenderOptions(width=width, height=height, start=start, end=end, fps=fps, speed=speed, camera=camera,
@@ -68,11 +69,3 @@ def _size(text: str) -> tuple[int, int]:
     return w, h
 
 
-def _range(text: str | None) -> tuple[int | None, int | None]:
-    if text is None:
-        return None, None
-    try:
-        a, b = text.split(":")
-        return (int(a) if a.strip() else None), (int(b) if b.strip() else None)
-    except ValueError:
-        raise ValueError(f"--frames: {text!r} is not START:END, e.g. 100:400") from None
