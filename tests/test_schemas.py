@@ -28,8 +28,9 @@ def test_schema_is_valid_and_published_at_top_level(name):
 
 def test_shipped_examples_validate():
     examples = example_path("giant_swing").parent
-    validate(json.loads((examples / "giant_swing.json").read_text()), "synthesis", "giant_swing.json")
-    validate(json.loads((examples / "giant_swing_limits.json").read_text()), "limits", "limits.json")
+    for name, schema_name in (("giant_swing.json", "synthesis"), ("giant_swing_limits.json", "limits")):
+        document = json.loads((examples / name).read_text())
+        assert validate(document, schema_name, name) is document  # raises InputError if invalid
 
 
 @pytest.mark.parametrize("name, document, message", [
