@@ -2,9 +2,12 @@
 
 Usage: ``python benchmarks/segment_experiments.py [--data ../shared/data]``
 
-Prints one table and writes ``benchmarks/results/segment_experiments.json``. Nothing here is
-used by ``usdmotion``: these are the variants of the shipped detector (``kcpd``) that were tried
-to recover its one miss (the 86_01 walk → leg-kick cut), scored with one protocol:
+Prints one table and writes ``benchmarks/results/segment_experiments.json``. These are the
+variants of kernel change-point detection that were tried to recover its one miss (the 86_01
+walk → leg-kick cut); one of them, ``kcpd+descent`` (each cut moved downhill on the bone energy
+to the nearest local minimum, ``usdmotion.ops.segment.refine_to_rest``), is what ``usdmotion``
+ships; ``kcpd`` is the detector alone (``segment(..., refine=False)``). All scored with one
+protocol:
 
 * **default**: the variant with settings fixed *before* looking at its scores (the middle of its
   grid, penalty 6), on the two labelled CMU takes (86_01, 14_14; 11 cuts);
@@ -88,7 +91,7 @@ def make_take(name, motion, labels, kind) -> Take:
     pos = S.role_positions(motion, roles)
     angles = S.angles_from_positions(pos)
     fps = motion.fps
-    speed = np.abs(np.gradient(angles, axis=0)) * fps
+    speed = S.angular_speed(angles, fps)
     up = 1 if motion.up_axis == "Y" else 2
     flat = [i for i in range(3) if i != up]
     leg = float(np.mean([np.linalg.norm(pos[f"{s}_hip"] - pos[f"{s}_knee"], axis=1).mean()
@@ -176,6 +179,12 @@ def pause_centre(t: Take, cuts: np.ndarray, threshold: float, min_s: float = 0.2
     return np.unique(np.asarray(out, np.int64))
 
 
+def descend(t: Take, cuts: np.ndarray, smooth_s: float, reach_s: float) -> np.ndarray:
+    """Each cut moved downhill on the bone-angle energy (mean squared angular speed of the 8 bones,
+    ``smooth_s`` moving average) to the nearest local minimum, at most ``reach_s`` away."""
+    return S.refine_to_rest(t.speed, cuts, t.fps, smooth_s, reach_s)
+
+
 def ppca_distance(x: np.ndarray, start: int, window: int, step: int, keep: float = 0.95):
     """Barbič et al. 2004, PPCA variant: for ``K = start + window, … (step)``, a PPCA Gaussian
     (rank keeping ``keep`` of the variance, the discarded variance spread evenly) fitted to
@@ -260,7 +269,8 @@ def variants() -> list[Variant]:
         return [dict(zip(axes, v)) | p for v in itertools.product(*axes.values()) for p in pens]
 
     return [
-        Variant("kcpd", "shipped detector", pens, {"penalty": 6.0}, lambda t, a: base(t, a["penalty"])),
+        Variant("kcpd", "kernel change points alone (refine=False)", pens, {"penalty": 6.0},
+                lambda t, a: base(t, a["penalty"])),
         Variant("kcpd+refine", "full-rate split: min two-segment kernel cost at 30 Hz, ±1 s, context L s",
                 grid(context_s=(1.0, 2.0, 4.0)), {"context_s": 2.0, "penalty": 6.0},
                 lambda t, a: refine(t, base(t, a["penalty"]), a["context_s"])),
@@ -278,6 +288,10 @@ def variants() -> list[Variant]:
         Variant("kcpd+pause", "cut next to a pause (activity < τ rad/s) moved to its middle",
                 grid(tau=(0.2, 0.3, 0.4, 0.5)), {"tau": 0.3, "penalty": 6.0},
                 lambda t, a: pause_centre(t, base(t, a["penalty"]), a["tau"])),
+        Variant("kcpd+descent", "shipped: cut moved downhill on the bone energy to the nearest local minimum (≤ R s)",
+                grid(smooth_s=(0.1, 0.25, 0.5), reach_s=(0.25, 0.5, 1.0)),
+                {"smooth_s": S.DEFAULT_REST_SMOOTH_S, "reach_s": S.DEFAULT_REST_REACH_S, "penalty": 6.0},
+                lambda t, a: descend(t, base(t, a["penalty"]), a["smooth_s"], a["reach_s"])),
         Variant("ppca", "Barbič et al. 2004 PPCA on the 8 bone angles (T 1.25 s, step 1/12 s, τ 0.95)",
                 [{"R": r} for r in (10.0, 15.0, 20.0, 30.0)], {"R": 15.0},
                 lambda t, a: ppca(t, a["R"])),
@@ -394,6 +408,26 @@ def miss_diagnostics(t: Take) -> dict:
             "stance_samples_typical_of_walk": f"{int((typ >= np.quantile(own, 0.05)).sum())}/{len(st)}"}
 
 
+def descent_sensitivity(takes: dict[str, list[Take]]) -> list[dict]:
+    """Hits of ``kcpd+descent`` (penalty 6) over its two settings, every group of takes."""
+    print("\nkcpd+descent at penalty 6 by energy smoothing (rows) and reach (columns): "
+          "hits labelled / Bandai / re-joined")
+    reaches, rows = (0.25, 0.5, 1.0), []
+    print(f"{'smooth':>8}  " + "  ".join(f"{f'{r:g} s':>14}" for r in reaches))
+    for smooth in (0.1, 0.25, 0.5):
+        cells = []
+        for reach in reaches:
+            hits = {g: sum(score(t, descend(t, kcpd(t, 6.0), smooth, reach)).true_positives for t in items)
+                    for g, items in takes.items()}
+            rows.append({"smooth_s": smooth, "reach_s": reach, **hits})
+            cells.append(f"{hits['labelled']:>2} /{hits['bandai']:>3} /{hits['shuffled']:>3}")
+        print(f"{smooth:>6g} s  " + "  ".join(f"{c:>14}" for c in cells))
+    sizes = {g: sum(t.labels.cuts.size for t in items) for g, items in takes.items()}
+    print(f"of {sizes['labelled']} / {sizes['bandai']} / {sizes['shuffled']} cuts; shipped: smooth "
+          f"{S.DEFAULT_REST_SMOOTH_S:g} s, reach {S.DEFAULT_REST_REACH_S:g} s")
+    return rows
+
+
 def fmt(s: dict) -> str:
     return f"{s['hits']:>2}/{s['labelled']:<2} of {s['detected']:>3} {s['precision']:6.1%} {s['recall']:6.1%}"
 
@@ -430,10 +464,13 @@ def main() -> int:
     for name, r in results.items():
         best = r["loto"]["best_in_sample"]
         print(f"{name:<18} default cuts {r['labelled']['cuts']}; best in-sample settings {best['settings']}")
-    shipped = {t.name: margins(t, np.asarray(results['kcpd']['labelled']['cuts'][t.name])) for t in labelled}
-    print("\nkcpd hits, frames inside the valid region's nearer edge:",
-          {n: [m["inside_by_frames"] for m in ms] for n, ms in shipped.items()})
-    results["kcpd_hit_margins"] = shipped
+    for name in ("kcpd", "kcpd+descent"):
+        hits = {t.name: margins(t, np.asarray(results[name]['labelled']['cuts'][t.name])) for t in labelled}
+        print(f"\n{name} hits, frames inside the valid region's nearer edge:",
+              {n: [m["inside_by_frames"] for m in ms] for n, ms in hits.items()}, end="")
+        results[f"{name}_hit_margins"] = hits
+    print()
+    results["descent_sensitivity"] = descent_sensitivity(takes)
     diag = miss_diagnostics(labelled[0])
     print("\n86_01 walk → leg kick (label 3199, band 3149-3249, kcpd 3288): best single split of 2484-4080 by "
           "feature and kernel width (× median heuristic)")

@@ -208,6 +208,63 @@ def test_kernel_change_points_on_piecewise_stationary_signal():
     np.testing.assert_allclose(cuts, [n, 2 * n], atol=0.25 * fps)
 
 
+def energy_shaped_speed(energy: np.ndarray) -> np.ndarray:
+    """``(F, 8)`` angular speeds whose mean square is ``energy``."""
+    return np.repeat(np.sqrt(energy)[:, None], 8, axis=1)
+
+
+def test_bone_energy_is_mean_squared_speed_then_moving_average():
+    rng = np.random.default_rng(7)
+    speed = np.abs(rng.normal(size=(50, 8)))
+    raw = S.bone_energy(speed, fps=10.0, smooth_s=0.1)                 # window of one frame: no smoothing
+    np.testing.assert_allclose(raw, (speed**2).sum(axis=1) / 8, rtol=1e-12)
+    smooth = S.bone_energy(speed, fps=10.0, smooth_s=0.3)              # three frames, centred
+    np.testing.assert_allclose(smooth[10], raw[9:12].mean(), rtol=1e-12)
+
+
+def test_refine_moves_a_cut_downhill_to_the_nearest_local_minimum():
+    f = np.arange(200, dtype=float)
+    # A deep rest at frame 20, a shallower one at 60, rising to frame 100 and beyond.
+    energy = 1.0 + np.minimum(np.minimum((f - 20) ** 2 / 400, 0.5 + (f - 60) ** 2 / 400), 10.0)
+    speed = energy_shaped_speed(energy)
+    assert S.refine_to_rest(speed, np.array([75]), fps=10.0, smooth_s=0.1, reach_s=10.0).tolist() == [60]
+    # Reach caps the move; a cut already at a minimum stays; a cut left of 60 on the far slope goes to 20.
+    assert S.refine_to_rest(speed, np.array([75]), fps=10.0, smooth_s=0.1, reach_s=0.5).tolist() == [70]
+    assert S.refine_to_rest(speed, np.array([60]), fps=10.0, smooth_s=0.1, reach_s=10.0).tolist() == [60]
+    assert S.refine_to_rest(speed, np.array([35]), fps=10.0, smooth_s=0.1, reach_s=10.0).tolist() == [20]
+    # Flat energy: nothing moves.
+    flat = energy_shaped_speed(np.ones(200))
+    assert S.refine_to_rest(flat, np.array([30, 90]), fps=10.0, smooth_s=0.1, reach_s=10.0).tolist() == [30, 90]
+
+
+def test_refine_never_passes_the_midpoint_to_a_neighbouring_cut():
+    f = np.arange(200, dtype=float)
+    speed = energy_shaped_speed(1.0 + (f - 100) ** 2 / 100)           # one rest at 100
+    out = S.refine_to_rest(speed, np.array([80, 140]), fps=10.0, smooth_s=0.1, reach_s=100.0)
+    assert out.tolist() == [100, 111]                                  # the second stops past the midpoint 110
+    out = S.refine_to_rest(speed, np.array([1, 199]), fps=10.0, smooth_s=0.1, reach_s=100.0)
+    assert 1 <= out.min() and out.max() <= 199 and np.all(np.diff(out) > 0)
+
+
+def test_refined_cut_lands_in_the_pause_between_two_actions():
+    """Action A (a fast swing), a 0.6 s stand still, action B (new pose, slow swing): kernel change
+    points place the cut somewhere around the pause; refinement moves it into the pause."""
+    rng = np.random.default_rng(2)
+    fps = 120.0
+    a, pause, b = 360, 72, 480
+    t = np.arange(a + pause + b) / fps
+    theta = np.full((t.size, 8), 2.8) + 0.002 * rng.normal(size=(t.size, 8))
+    theta[:a, :4] += 0.5 * np.sin(2 * np.pi * 1.5 * t[:a])[:, None]
+    theta[a + pause:, 4:] -= 0.8
+    theta[a + pause:, 4:6] += 0.4 * np.sin(2 * np.pi * 0.8 * (t[a + pause:] - t[a + pause]))[:, None]
+    x, pool = S.pooled_features(theta, fps)
+    raw = S.kernel_change_points(x, S.DEFAULT_PENALTY, 10) * pool
+    assert raw.size == 1 and abs(raw[0] - (a + pause // 2)) <= 0.5 * fps
+    assert not a <= raw[0] < a + pause                                 # the detector alone misses the pause
+    refined = S.refine_to_rest(S.angular_speed(theta, fps), raw, fps)
+    assert refined.size == 1 and a <= refined[0] < a + pause
+
+
 # ----------------------------------------------------------------------------- scoring
 
 
@@ -359,3 +416,25 @@ def test_heuristic_on_a_constructed_motion():
     assert seg.cuts.size >= 1
     assert np.min(np.abs(seg.cuts / fps - 5.0)) <= 1.0  # the first small swing follows 5 s
     assert np.all(np.abs(seg.cuts / fps - 5.0) <= 1.0)  # no candidate inside the steady parts
+
+
+@pytest.mark.parametrize("bvh, labels", [("cmu86/86_01_from_amc_cgspeed_layout.bvh", "cmu86/groundtruth86.json"),
+                                         ("cmu14/max_14_14_exercise_routine.bvh", "cmu14/14_14_segments.csv")])
+def test_refined_cuts_on_the_labelled_takes(shared_file, bvh, labels):
+    """Each shipped cut is the raw kcpd cut moved ≤ 0.5 s to a local minimum of the bone energy
+    (or to the reach limit), and every labelled transition is found (the issue's headline figure)."""
+    from usdmotion.io import read_motion
+
+    motion = read_motion(shared_file(bvh))
+    raw = S.segment(motion, refine=False)
+    seg = S.segment(motion)
+    assert seg.params["refine"] and not raw.params["refine"]
+    assert raw.cuts.size == seg.cuts.size and np.all(raw.cuts % 12 == 0)    # 10 Hz grid at 120 Hz
+    moved = seg.cuts - raw.cuts
+    assert np.all(np.abs(moved) <= 0.5 * motion.fps)
+    energy = S.bone_energy(S.angular_speed(seg.angles, motion.fps), motion.fps)
+    at_limit = np.abs(moved) == round(0.5 * motion.fps)
+    local_min = (energy[seg.cuts] <= energy[seg.cuts - 1]) & (energy[seg.cuts] <= energy[seg.cuts + 1])
+    assert np.all(local_min | at_limit), seg.cuts
+    score = score_cuts(seg.cuts, load_labels(shared_file(labels)), int(0.5 * motion.fps))
+    assert (score.precision, score.recall) == (1.0, 1.0), (seg.cuts.tolist(), score)

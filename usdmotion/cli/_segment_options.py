@@ -22,6 +22,9 @@ Param = Annotated[float, typer.Option(min=0.0, max=1.0, help="heuristic: swing-r
 Cutoff = Annotated[float, typer.Option(help="Low-pass cut-off of the norm signal, Hz (heuristic, plot).")]
 Penalty = Annotated[float, typer.Option(help="kcpd: cost of one cut (larger: fewer cuts).")]
 MinLength = Annotated[float, typer.Option(help="kcpd: shortest segment, seconds.")]
+Refine = Annotated[bool, typer.Option(
+    "--refine/--no-refine", help="kcpd: move each cut to the nearest local minimum of the bone energy "
+                                 "(where the body moves least), at most 0.5 s.")]
 Roles = Annotated[list[str] | None, typer.Option(
     "--role", help="Name a role's joint, e.g. --role chest=Spine2 (repeatable). Roles: root, chest, "
                    "left_/right_ shoulder, elbow, wrist, hip, knee, ankle.", show_default=False)]
@@ -31,7 +34,7 @@ Preset = Annotated[str | None, typer.Option(
 
 
 def run_segmentation(motion, source: Path, method: MethodChoice, param: float, cutoff: float, penalty: float,
-                     min_length: float, role: list[str] | None, preset: str | None):
+                     min_length: float, role: list[str] | None, preset: str | None, refine: bool = True):
     """Find roles and cut ``motion`` (errors name ``source``)."""
     from usdmotion.cli._progress import progress
     from usdmotion.ops.roles import parse_role_overrides
@@ -39,8 +42,12 @@ def run_segmentation(motion, source: Path, method: MethodChoice, param: float, c
 
     with progress(f"segmenting {source.name}"):
         return segment(motion, method=method.value, param=param, cutoff_hz=cutoff, penalty=penalty,
-                       min_length_s=min_length, roles=parse_role_overrides(role), preset=preset,
-                       source=str(source))
+                       min_length_s=min_length, refine=refine, roles=parse_role_overrides(role),
+                       preset=preset, source=str(source))
+
+
+def _setting(key: str, value) -> str:
+    return key if value is True else f"no {key}" if value is False else f"{key}={value:g}"
 
 
 def print_segments(seg, source: Path, chosen: int | None, as_json: bool, clips: list[Path]) -> None:
@@ -56,7 +63,7 @@ def print_segments(seg, source: Path, chosen: int | None, as_json: bool, clips: 
 
     table = Table("#", "first frame", "last frame", "frames", "start (s)", "end (s)", "duration (s)",
                   title=f"{source.name}: {len(doc['segments'])} segments ({seg.method}, "
-                        f"{', '.join(f'{k}={v:g}' for k, v in seg.params.items())})")
+                        f"{', '.join(_setting(k, v) for k, v in seg.params.items())})")
     for s in rows:
         table.add_row(str(s["index"]), str(s["start_frame"]), str(s["end_frame"]), str(s["frames"]),
                       f"{s['start_time']:.3f}", f"{s['end_time']:.3f}", f"{s['frames'] / seg.fps:.3f}")

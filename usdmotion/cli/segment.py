@@ -9,8 +9,8 @@ from typing import Annotated
 import typer
 
 from usdmotion.cli._options import InputPath, Json, Lenient, RootOffset, RootOffsetChoice, UpAxis, Units, read_input
-from usdmotion.cli._segment_options import (Cutoff, MinLength, Method, MethodChoice, Param, Penalty, Preset, Roles,
-                                            print_segments, run_segmentation)
+from usdmotion.cli._segment_options import (Cutoff, MinLength, Method, MethodChoice, Param, Penalty, Preset, Refine,
+                                            Roles, print_segments, run_segmentation)
 from usdmotion.cli.app import app
 
 
@@ -28,6 +28,7 @@ def segment(
     cutoff: Cutoff = 2.0,
     penalty: Penalty = 6.0,
     min_length: MinLength = 1.0,
+    refine: Refine = True,
     role: Roles = None,
     preset: Preset = None,
     out: Annotated[Path | None, typer.Option(help="Write the segments as JSON here.", show_default=False)] = None,
@@ -49,7 +50,7 @@ def segment(
     from usdmotion.ops.segment_io import plot_segmentation, write_segments_json
 
     motion = read_input(source, units, up_axis, root_offset, lenient)
-    seg = run_segmentation(motion, source, method, param, cutoff, penalty, min_length, role, preset)
+    seg = run_segmentation(motion, source, method, param, cutoff, penalty, min_length, role, preset, refine)
     chosen = None if at is None else seg.segment_at(at, str(source))
     if out is not None:
         write_segments_json(seg, out, str(source), chosen)

@@ -9,7 +9,7 @@ from typing import Annotated
 import typer
 
 from usdmotion.cli._options import InputPath, Json, Lenient, RootOffset, RootOffsetChoice, UpAxis, Units, read_input
-from usdmotion.cli._segment_options import Cutoff, MinLength, Param, Penalty, Preset, Roles
+from usdmotion.cli._segment_options import Cutoff, MinLength, Param, Penalty, Preset, Refine, Roles
 from usdmotion.cli.app import app
 
 
@@ -26,6 +26,7 @@ def segment_eval(
     cutoff: Cutoff = 2.0,
     penalty: Penalty = 6.0,
     min_length: MinLength = 1.0,
+    refine: Refine = True,
     role: Roles = None,
     preset: Preset = None,
     units: Units = None,
@@ -43,7 +44,7 @@ def segment_eval(
     tol = int(round(tolerance * motion.fps))
     results = {}
     for method in MethodChoice:
-        seg = run_segmentation(motion, source, method, param, cutoff, penalty, min_length, role, preset)
+        seg = run_segmentation(motion, source, method, param, cutoff, penalty, min_length, role, preset, refine)
         results[method.value] = {"params": seg.params, **score_cuts(seg.cuts, truth, tol).to_dict()}
     if as_json:
         typer.echo(json.dumps({"file": str(source), "labels": str(labels), "tolerance_frames": tol,

@@ -45,6 +45,9 @@ DEFAULT_PENALTY = 6.0
 DEFAULT_SPEED_WEIGHT = 0.25
 DEFAULT_MIN_LENGTH_S = 1.0
 KCPD_RATE_HZ = 10.0
+#: Cut refinement: moving average (s) of the bone energy, farthest move (s) to its local minimum.
+DEFAULT_REST_SMOOTH_S = 0.1
+DEFAULT_REST_REACH_S = 0.5
 #: Shortest motion accepted, in seconds and frames.
 MIN_DURATION_S = 1.0
 MIN_FRAMES = 16
@@ -65,6 +68,7 @@ class Segmentation:
         signal: ``(F,)`` the norm signal ``Q = ‖θ‖``.
         filtered: ``(F,)`` ``Q`` after the low-pass filter.
         candidates: ``(C,)`` the paper's candidate cuts on ``filtered`` (for the plot).
+        energy: ``(F,)`` bone energy, rad²/s² (:func:`bone_energy`; kcpd cuts move to its minima).
         roles: ``{role: joint name}`` used for the feature.
     """
 
@@ -77,6 +81,7 @@ class Segmentation:
     signal: np.ndarray | None = field(default=None, repr=False)
     filtered: np.ndarray | None = field(default=None, repr=False)
     candidates: np.ndarray | None = field(default=None, repr=False)
+    energy: np.ndarray | None = field(default=None, repr=False)
     roles: dict = field(default_factory=dict)
 
     def bounds(self) -> np.ndarray:
@@ -198,13 +203,17 @@ def swing_candidates(y: np.ndarray, param: float = DEFAULT_PARAM) -> np.ndarray:
 # --------------------------------------------------------------------------- kernel change points
 
 
+def angular_speed(angles: np.ndarray, fps: float) -> np.ndarray:
+    """``(F, B)`` absolute angular speeds ``|dθ/dt|`` (rad/s) of ``(F, B)`` angles in radians."""
+    return np.abs(np.gradient(angles, axis=0)) * fps
+
+
 def pooled_features(angles: np.ndarray, fps: float, speed_weight: float = DEFAULT_SPEED_WEIGHT,
                     rate_hz: float = KCPD_RATE_HZ) -> tuple[np.ndarray, int]:
     """``(X (N, 16), pool)``: angles and ``speed_weight``·|dθ/dt| averaged over blocks of
     ``pool`` frames (``pool ≈ fps / rate_hz``)."""
     pool = max(1, int(round(fps / rate_hz)))
-    speed = np.abs(np.gradient(angles, axis=0)) * fps * speed_weight
-    feats = np.concatenate([angles, speed], axis=1)
+    feats = np.concatenate([angles, angular_speed(angles, fps) * speed_weight], axis=1)
     n = feats.shape[0] // pool
     return feats[: n * pool].reshape(n, pool, -1).mean(axis=1), pool
 
@@ -231,6 +240,54 @@ def kernel_change_points(x: np.ndarray, penalty: float = DEFAULT_PENALTY, min_si
     return np.asarray(algo.predict(pen=penalty)[:-1], dtype=np.int64)
 
 
+def bone_energy(speed: np.ndarray, fps: float, smooth_s: float = DEFAULT_REST_SMOOTH_S) -> np.ndarray:
+    """``(F,)`` mean squared angular speed of the bones (rad²/s²), ``smooth_s`` moving average.
+
+    Args:
+        speed: ``(F, B)`` absolute angular speeds ``|dθ/dt|`` in rad/s.
+    """
+    from scipy.ndimage import uniform_filter1d
+
+    return uniform_filter1d(np.mean(speed**2, axis=1), max(1, int(round(smooth_s * fps))), mode="nearest")
+
+
+def refine_to_rest(speed: np.ndarray, cuts: np.ndarray, fps: float, smooth_s: float = DEFAULT_REST_SMOOTH_S,
+                   reach_s: float = DEFAULT_REST_REACH_S) -> np.ndarray:
+    """Move each cut downhill on :func:`bone_energy` to the nearest local minimum.
+
+    A change-point detector knows *which* change happened to within its pooling, not
+    *where* the body passed between the two actions; people (and clip libraries) cut where
+    the body moves least (the zero-velocity boundaries of Fod, Matarić & Jenkins 2002).
+    Each cut follows the steeper downhill side until the energy rises again, at most
+    ``reach_s`` seconds and never past the midpoint to a neighbouring cut.
+
+    Args:
+        speed: ``(F, B)`` absolute angular speeds in rad/s.
+        cuts: ``(K,)`` sorted frame indices in ``1 .. F-1``.
+    Returns:
+        ``(K',)`` sorted unique frame indices in ``1 .. F-1`` (K' ≤ K).
+    """
+    cuts = np.asarray(cuts, np.int64)
+    n = speed.shape[0]
+    if cuts.size == 0 or n < 3:
+        return cuts
+    energy = bone_energy(speed, fps, smooth_s)
+    reach = max(0, int(round(reach_s * fps)))
+    bounds = np.concatenate([[0], cuts, [n]])
+    lows = np.maximum(np.maximum(cuts - reach, (bounds[:-2] + cuts) // 2 + 1), 1)
+    highs = np.minimum(np.minimum(cuts + reach, (cuts + bounds[2:] - 1) // 2), n - 1)
+    out = np.empty_like(cuts)
+    for k, (c, lo, hi) in enumerate(zip(cuts, lows, highs)):   # a handful of cuts, not frames
+        left = energy[lo:c + 1][::-1]                           # c, c-1, ..., lo
+        right = energy[c:hi + 1]                                # c, c+1, ..., hi
+        go_left = left.size > 1 and (right.size < 2 or left[1] < right[1])
+        path = left if go_left else right
+        rising = np.flatnonzero(np.diff(path) >= 0)
+        steps = int(rising[0]) if rising.size else path.size - 1
+        out[k] = c - steps if go_left else c + steps
+    return np.unique(out)
+
+
 # --------------------------------------------------------------------------- driver
 
 
@@ -245,7 +302,7 @@ def check_length(motion: Motion, source: str | None = None) -> None:
 def segment(motion: Motion, method: str = DEFAULT_METHOD, param: float = DEFAULT_PARAM,
             cutoff_hz: float = DEFAULT_CUTOFF_HZ, penalty: float = DEFAULT_PENALTY,
             min_length_s: float = DEFAULT_MIN_LENGTH_S, speed_weight: float = DEFAULT_SPEED_WEIGHT,
-            roles: Mapping[str, str] | None = None, preset: str | None = None,
+            refine: bool = True, roles: Mapping[str, str] | None = None, preset: str | None = None,
             source: str | None = None) -> Segmentation:
     """Cut ``motion`` into primitive actions.
 
@@ -256,6 +313,8 @@ def segment(motion: Motion, method: str = DEFAULT_METHOD, param: float = DEFAULT
         penalty: kcpd cost per cut (larger: fewer cuts).
         min_length_s: kcpd shortest segment, seconds.
         speed_weight: kcpd weight (seconds) of the angular speeds against the angles.
+        refine: kcpd: move each cut to the nearest local minimum of the bone energy
+            (:func:`refine_to_rest`, at most 0.5 s).
         roles: ``{role: joint name}`` overrides for the role map.
         preset: force a role preset (:data:`~usdmotion.ops.roles.PRESET_NAMES`).
         source: file name for messages.
@@ -270,6 +329,7 @@ def segment(motion: Motion, method: str = DEFAULT_METHOD, param: float = DEFAULT
     q = norm_signal(angles)
     filtered = lowpass(q, motion.fps, min(cutoff_hz, 0.45 * motion.fps))
     candidates = swing_candidates(filtered, param)
+    speed = angular_speed(angles, motion.fps)
     if method == "heuristic":
         cuts = candidates
         params = {"param": param, "cutoff_hz": cutoff_hz}
@@ -278,11 +338,15 @@ def segment(motion: Motion, method: str = DEFAULT_METHOD, param: float = DEFAULT
         min_size = max(2, math.ceil(min_length_s * motion.fps / pool))
         cuts = kernel_change_points(x, penalty, min_size) * pool
         params = {"penalty": penalty, "min_length_s": min_length_s, "speed_weight": speed_weight,
-                  "rate_hz": motion.fps / pool}
+                  "rate_hz": motion.fps / pool, "refine": refine}
+        if refine:
+            cuts = refine_to_rest(speed, cuts[(cuts > 0) & (cuts < motion.n_frames)], motion.fps)
+            params |= {"rest_smooth_s": DEFAULT_REST_SMOOTH_S, "rest_reach_s": DEFAULT_REST_REACH_S}
     cuts = np.unique(cuts[(cuts > 0) & (cuts < motion.n_frames)])
     names = {r: motion.joint_names[j] for r, j in role_index.items()}
     return Segmentation(cuts=cuts, n_frames=motion.n_frames, fps=motion.fps, method=method, params=params,
-                        angles=angles, signal=q, filtered=filtered, candidates=candidates, roles=names)
+                        angles=angles, signal=q, filtered=filtered, candidates=candidates,
+                        energy=bone_energy(speed, motion.fps), roles=names)
 
 
 def clip(motion: Motion, first: int, last: int) -> Motion:

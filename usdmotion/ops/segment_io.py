@@ -36,15 +36,16 @@ def write_segments_json(seg: Segmentation, path: str | os.PathLike, source: str 
 def plot_segmentation(seg: Segmentation, path: str | os.PathLike, title: str = "",
                       highlight: int | None = None) -> Path:
     """PNG/SVG/PDF: the norm signal, its low-passed version, the paper's candidates, the cuts
-    (dashed) over shaded segments, and the eight bone angles below."""
+    (dashed) over shaded segments; below, the bone energy the cuts settle on, and the eight
+    bone angles."""
     import matplotlib
 
     matplotlib.use("Agg")
     from matplotlib.figure import Figure
 
     t = np.arange(seg.n_frames) / seg.fps
-    fig = Figure(figsize=(12, 5.5), layout="constrained")
-    top, bottom = fig.subplots(2, 1, sharex=True, height_ratios=[3, 2])
+    fig = Figure(figsize=(12, 6.5), layout="constrained")
+    top, middle, bottom = fig.subplots(3, 1, sharex=True, height_ratios=[3, 1.2, 2])
     for i, (a, b) in enumerate(seg.bounds()):
         color = "tab:orange" if i == highlight else ("0.92" if i % 2 else "white")
         top.axvspan(a / seg.fps, (b + 1) / seg.fps, color=color, alpha=0.35 if i == highlight else 1, lw=0)
@@ -59,6 +60,11 @@ def plot_segmentation(seg: Segmentation, path: str | os.PathLike, title: str = "
     top.set_ylabel("norm signal (deg)")
     top.legend(loc="lower left", bbox_to_anchor=(0, 1.0), fontsize=8, ncol=4, frameon=False)
     fig.suptitle(title or f"{seg.method}: {len(seg.bounds())} segments", fontsize=10)
+    if seg.energy is not None:
+        middle.semilogy(t, np.maximum(seg.energy, 1e-6), color="tab:purple", lw=1)
+        for c in seg.cuts:
+            middle.axvline(c / seg.fps, color="tab:red", ls="--", lw=1)
+    middle.set_ylabel("bone energy\n(rad²/s²)", fontsize=8)
     image = bottom.imshow(np.degrees(seg.angles.T), aspect="auto", cmap="viridis", interpolation="nearest",
                           extent=(0, seg.n_frames / seg.fps, len(LIMB_BONES) - 0.5, -0.5))
     bottom.set_yticks(range(len(LIMB_BONES)), [b[0].replace("_", " ") for b in LIMB_BONES], fontsize=7)
