@@ -99,6 +99,23 @@ def test_heuristic_method_and_json(shared_file, capsys):
     assert doc["cuts"] == seg.cuts.tolist() and doc["params"] == {"param": 0.3, "cutoff_hz": 2.0}
 
 
+def test_no_refine_keeps_the_detector_cuts(shared_file, capsys):
+    from usdmotion.ops import segment as S
+
+    path = shared_file("cmu14/max_14_14_exercise_routine.bvh")
+    docs = {}
+    for flag in ("--refine", "--no-refine"):
+        code, stdout, err = run(capsys, "segment", path, flag, "--json")
+        assert code == 0, err
+        docs[flag] = json.loads(stdout)
+    motion = read_motion(path)
+    raw = S.segment(motion, refine=False).cuts
+    assert docs["--no-refine"]["cuts"] == raw.tolist() and docs["--no-refine"]["params"]["refine"] is False
+    assert docs["--refine"]["cuts"] == S.refine_to_rest(S.angular_speed(S.bone_angles(motion), motion.fps), raw,
+                                                         motion.fps).tolist()
+    assert docs["--refine"]["cuts"] != docs["--no-refine"]["cuts"]
+
+
 def test_segment_eval_matches_an_independent_count(shared_file, capsys):
     bvh, labels = shared_file("cmu14/max_14_14_exercise_routine.bvh"), shared_file("cmu14/14_14_segments.csv")
     code, stdout, err = run(capsys, "segment-eval", bvh, labels, "--json")
