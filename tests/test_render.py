@@ -221,3 +221,20 @@ def test_usd_camera_is_used_as_authored(walk, tmp_path):
     uv = project(joints_render_space(walk, np.array([100]))[0], pose, yfov, 320, 240)
     cols, rows = np.floor(uv[inner_joints(walk)]).astype(int).T
     assert is_body(image[rows, cols]).mean() >= 0.9
+
+
+@pytest.mark.parametrize("setting, expected", [(None, "True"), ("false", "False")])
+def test_pyrender_import_keeps_pyglet_off_x11_unless_told(setting, expected):
+    """GPU servers often have no X11 libraries: importing pyrender through usdmotion runs
+    pyglet headless (EGL) unless PYGLET_HEADLESS says otherwise."""
+    import os
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if k != "PYGLET_HEADLESS"}
+    if setting is not None:
+        env["PYGLET_HEADLESS"] = setting
+    code = ("from usdmotion.render.gl import import_pyrender; import_pyrender(); "
+            "import pyglet; print(pyglet.options.headless)")
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == expected

@@ -18,8 +18,13 @@ _MSAA = {"samples": 0}
 
 
 def import_pyrender():
-    """Import pyrender for headless EGL (``PYOPENGL_PLATFORM=egl`` unless set; ``np.infty``)."""
+    """Import pyrender for headless EGL (``PYOPENGL_PLATFORM=egl`` unless set; ``np.infty``).
+
+    pyrender imports its pyglet viewer too; ``PYGLET_HEADLESS`` (unless set) keeps pyglet off
+    X11, so no X libraries are needed (GPU servers often have none).
+    """
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+    os.environ.setdefault("PYGLET_HEADLESS", "true")
     if not hasattr(np, "infty"):
         np.infty = np.inf  # pyrender's shadow code still uses the NumPy 1 alias
     import pyrender
