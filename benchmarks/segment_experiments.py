@@ -182,7 +182,7 @@ def pause_centre(t: Take, cuts: np.ndarray, threshold: float, min_s: float = 0.2
 def descend(t: Take, cuts: np.ndarray, smooth_s: float, reach_s: float) -> np.ndarray:
     """Each cut moved downhill on the bone-angle energy (mean squared angular speed of the 8 bones,
     ``smooth_s`` moving average) to the nearest local minimum, at most ``reach_s`` away."""
-    return S.refine_to_rest(t.speed, cuts, t.fps, smooth_s, reach_s)
+    return S.refine_to_rest(S.bone_energy(t.speed, t.fps, smooth_s), cuts, t.fps, reach_s)
 
 
 def ppca_distance(x: np.ndarray, start: int, window: int, step: int, keep: float = 0.95):
@@ -288,7 +288,7 @@ def variants() -> list[Variant]:
         Variant("kcpd+pause", "cut next to a pause (activity < τ rad/s) moved to its middle",
                 grid(tau=(0.2, 0.3, 0.4, 0.5)), {"tau": 0.3, "penalty": 6.0},
                 lambda t, a: pause_centre(t, base(t, a["penalty"]), a["tau"])),
-        Variant("kcpd+descent", "shipped: cut moved downhill on the bone energy to the nearest local minimum (≤ R s)",
+        Variant("kcpd+descent", "shipped: cut moved downhill on the bone energy to the nearest valley (≤ R s)",
                 grid(smooth_s=(0.1, 0.25, 0.5), reach_s=(0.25, 0.5, 1.0)),
                 {"smooth_s": S.DEFAULT_REST_SMOOTH_S, "reach_s": S.DEFAULT_REST_REACH_S, "penalty": 6.0},
                 lambda t, a: descend(t, base(t, a["penalty"]), a["smooth_s"], a["reach_s"])),
@@ -413,11 +413,12 @@ def descent_sensitivity(takes: dict[str, list[Take]]) -> list[dict]:
     print("\nkcpd+descent at penalty 6 by energy smoothing (rows) and reach (columns): "
           "hits labelled / Bandai / re-joined")
     reaches, rows = (0.25, 0.5, 1.0), []
+    raw = {t.name: kcpd(t, 6.0) for items in takes.values() for t in items}
     print(f"{'smooth':>8}  " + "  ".join(f"{f'{r:g} s':>14}" for r in reaches))
     for smooth in (0.1, 0.25, 0.5):
         cells = []
         for reach in reaches:
-            hits = {g: sum(score(t, descend(t, kcpd(t, 6.0), smooth, reach)).true_positives for t in items)
+            hits = {g: sum(score(t, descend(t, raw[t.name], smooth, reach)).true_positives for t in items)
                     for g, items in takes.items()}
             rows.append({"smooth_s": smooth, "reach_s": reach, **hits})
             cells.append(f"{hits['labelled']:>2} /{hits['bandai']:>3} /{hits['shuffled']:>3}")

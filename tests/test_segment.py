@@ -208,11 +208,6 @@ def test_kernel_change_points_on_piecewise_stationary_signal():
     np.testing.assert_allclose(cuts, [n, 2 * n], atol=0.25 * fps)
 
 
-def energy_shaped_speed(energy: np.ndarray) -> np.ndarray:
-    """``(F, 8)`` angular speeds whose mean square is ``energy``."""
-    return np.repeat(np.sqrt(energy)[:, None], 8, axis=1)
-
-
 def test_bone_energy_is_mean_squared_speed_then_moving_average():
     rng = np.random.default_rng(7)
     speed = np.abs(rng.normal(size=(50, 8)))
@@ -226,23 +221,21 @@ def test_refine_moves_a_cut_downhill_to_the_nearest_local_minimum():
     f = np.arange(200, dtype=float)
     # A deep rest at frame 20, a shallower one at 60, rising to frame 100 and beyond.
     energy = 1.0 + np.minimum(np.minimum((f - 20) ** 2 / 400, 0.5 + (f - 60) ** 2 / 400), 10.0)
-    speed = energy_shaped_speed(energy)
-    assert S.refine_to_rest(speed, np.array([75]), fps=10.0, smooth_s=0.1, reach_s=10.0).tolist() == [60]
+    assert S.refine_to_rest(energy, np.array([75]), fps=10.0, reach_s=10.0).tolist() == [60]
     # Reach caps the move; a cut already at a minimum stays; a cut left of 60 on the far slope goes to 20.
-    assert S.refine_to_rest(speed, np.array([75]), fps=10.0, smooth_s=0.1, reach_s=0.5).tolist() == [70]
-    assert S.refine_to_rest(speed, np.array([60]), fps=10.0, smooth_s=0.1, reach_s=10.0).tolist() == [60]
-    assert S.refine_to_rest(speed, np.array([35]), fps=10.0, smooth_s=0.1, reach_s=10.0).tolist() == [20]
+    assert S.refine_to_rest(energy, np.array([75]), fps=10.0, reach_s=0.5).tolist() == [70]
+    assert S.refine_to_rest(energy, np.array([60]), fps=10.0, reach_s=10.0).tolist() == [60]
+    assert S.refine_to_rest(energy, np.array([35]), fps=10.0, reach_s=10.0).tolist() == [20]
     # Flat energy: nothing moves.
-    flat = energy_shaped_speed(np.ones(200))
-    assert S.refine_to_rest(flat, np.array([30, 90]), fps=10.0, smooth_s=0.1, reach_s=10.0).tolist() == [30, 90]
+    assert S.refine_to_rest(np.ones(200), np.array([30, 90]), fps=10.0, reach_s=10.0).tolist() == [30, 90]
 
 
 def test_refine_never_passes_the_midpoint_to_a_neighbouring_cut():
     f = np.arange(200, dtype=float)
-    speed = energy_shaped_speed(1.0 + (f - 100) ** 2 / 100)           # one rest at 100
-    out = S.refine_to_rest(speed, np.array([80, 140]), fps=10.0, smooth_s=0.1, reach_s=100.0)
+    energy = 1.0 + (f - 100) ** 2 / 100                                # one rest at 100
+    out = S.refine_to_rest(energy, np.array([80, 140]), fps=10.0, reach_s=100.0)
     assert out.tolist() == [100, 111]                                  # the second stops past the midpoint 110
-    out = S.refine_to_rest(speed, np.array([1, 199]), fps=10.0, smooth_s=0.1, reach_s=100.0)
+    out = S.refine_to_rest(energy, np.array([1, 199]), fps=10.0, reach_s=100.0)
     assert 1 <= out.min() and out.max() <= 199 and np.all(np.diff(out) > 0)
 
 
@@ -261,7 +254,7 @@ def test_refined_cut_lands_in_the_pause_between_two_actions():
     raw = S.kernel_change_points(x, S.DEFAULT_PENALTY, 10) * pool
     assert raw.size == 1 and abs(raw[0] - (a + pause // 2)) <= 0.5 * fps
     assert not a <= raw[0] < a + pause                                 # the detector alone misses the pause
-    refined = S.refine_to_rest(S.angular_speed(theta, fps), raw, fps)
+    refined = S.refine_to_rest(S.bone_energy(S.angular_speed(theta, fps), fps), raw, fps)
     assert refined.size == 1 and a <= refined[0] < a + pause
 
 

@@ -111,8 +111,8 @@ def test_no_refine_keeps_the_detector_cuts(shared_file, capsys):
     motion = read_motion(path)
     raw = S.segment(motion, refine=False).cuts
     assert docs["--no-refine"]["cuts"] == raw.tolist() and docs["--no-refine"]["params"]["refine"] is False
-    assert docs["--refine"]["cuts"] == S.refine_to_rest(S.angular_speed(S.bone_angles(motion), motion.fps), raw,
-                                                         motion.fps).tolist()
+    energy = S.bone_energy(S.angular_speed(S.bone_angles(motion), motion.fps), motion.fps)
+    assert docs["--refine"]["cuts"] == S.refine_to_rest(energy, raw, motion.fps).tolist()
     assert docs["--refine"]["cuts"] != docs["--no-refine"]["cuts"]
 
 

@@ -251,7 +251,7 @@ def bone_energy(speed: np.ndarray, fps: float, smooth_s: float = DEFAULT_REST_SM
     return uniform_filter1d(np.mean(speed**2, axis=1), max(1, int(round(smooth_s * fps))), mode="nearest")
 
 
-def refine_to_rest(speed: np.ndarray, cuts: np.ndarray, fps: float, smooth_s: float = DEFAULT_REST_SMOOTH_S,
+def refine_to_rest(energy: np.ndarray, cuts: np.ndarray, fps: float,
                    reach_s: float = DEFAULT_REST_REACH_S) -> np.ndarray:
     """Move each cut downhill on :func:`bone_energy` to the nearest local minimum.
 
@@ -262,16 +262,15 @@ def refine_to_rest(speed: np.ndarray, cuts: np.ndarray, fps: float, smooth_s: fl
     ``reach_s`` seconds and never past the midpoint to a neighbouring cut.
 
     Args:
-        speed: ``(F, B)`` absolute angular speeds in rad/s.
+        energy: ``(F,)`` the bone energy (:func:`bone_energy`).
         cuts: ``(K,)`` sorted frame indices in ``1 .. F-1``.
     Returns:
         ``(K',)`` sorted unique frame indices in ``1 .. F-1`` (K' ≤ K).
     """
     cuts = np.asarray(cuts, np.int64)
-    n = speed.shape[0]
+    n = energy.shape[0]
     if cuts.size == 0 or n < 3:
         return cuts
-    energy = bone_energy(speed, fps, smooth_s)
     reach = max(0, int(round(reach_s * fps)))
     bounds = np.concatenate([[0], cuts, [n]])
     lows = np.maximum(np.maximum(cuts - reach, (bounds[:-2] + cuts) // 2 + 1), 1)
@@ -329,7 +328,7 @@ def segment(motion: Motion, method: str = DEFAULT_METHOD, param: float = DEFAULT
     q = norm_signal(angles)
     filtered = lowpass(q, motion.fps, min(cutoff_hz, 0.45 * motion.fps))
     candidates = swing_candidates(filtered, param)
-    speed = angular_speed(angles, motion.fps)
+    energy = bone_energy(angular_speed(angles, motion.fps), motion.fps)
     if method == "heuristic":
         cuts = candidates
         params = {"param": param, "cutoff_hz": cutoff_hz}
@@ -340,13 +339,14 @@ def segment(motion: Motion, method: str = DEFAULT_METHOD, param: float = DEFAULT
         params = {"penalty": penalty, "min_length_s": min_length_s, "speed_weight": speed_weight,
                   "rate_hz": motion.fps / pool, "refine": refine}
         if refine:
-            cuts = refine_to_rest(speed, cuts[(cuts > 0) & (cuts < motion.n_frames)], motion.fps)
             params |= {"rest_smooth_s": DEFAULT_REST_SMOOTH_S, "rest_reach_s": DEFAULT_REST_REACH_S}
     cuts = np.unique(cuts[(cuts > 0) & (cuts < motion.n_frames)])
+    if method == "kcpd" and refine:
+        cuts = refine_to_rest(energy, cuts, motion.fps)
     names = {r: motion.joint_names[j] for r, j in role_index.items()}
     return Segmentation(cuts=cuts, n_frames=motion.n_frames, fps=motion.fps, method=method, params=params,
                         angles=angles, signal=q, filtered=filtered, candidates=candidates,
-                        energy=bone_energy(speed, motion.fps), roles=names)
+                        energy=energy, roles=names)
 
 
 def clip(motion: Motion, first: int, last: int) -> Motion:
