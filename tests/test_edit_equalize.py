@@ -12,7 +12,7 @@ from usdmotion import rotations as R
 from usdmotion.io import read_motion
 from usdmotion.kinematics import joint_positions
 from usdmotion.ops.edit import EditError, equalize, trim
-from usdmotion.ops.edit import _quat as Q
+from usdmotion import quat_planes as Q
 from usdmotion.ops.edit.equalize import KERNEL, atrous_bands, equalize_signal, max_bands, preset_gains
 
 RNG = np.random.default_rng(7)

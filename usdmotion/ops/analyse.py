@@ -42,6 +42,7 @@ from usdmotion.anthropometry import BodyModel
 from usdmotion.errors import InputError
 from usdmotion.kinematics import rest_positions, world_rotations_positions
 from usdmotion.motion import Motion
+from usdmotion import quat_planes as Q
 from usdmotion.ops.smoothing import FilterSpec, smooth_derivatives
 from usdmotion.skeleton_names import children_map, distal_joints, proximal_joint, rest_tolerance
 
@@ -101,15 +102,6 @@ class Kinematics:
 def slice_frames(motion: Motion, start: int = 0, stop: int | None = None) -> Motion:
     """Frames ``start:stop`` of a motion, keeping ``source_channels`` (the Euler hint)."""
     return motion.sliced(start, stop)
-
-
-def _continuous(q: np.ndarray) -> np.ndarray:
-    """Flip quaternion signs ``(F, ...,4)`` so consecutive frames lie in one hemisphere."""
-    if q.shape[0] < 2:
-        return q
-    dots = np.sum(q[1:] * q[:-1], axis=-1)
-    flips = np.concatenate([np.ones((1,) + dots.shape[1:]), np.where(dots < 0, -1.0, 1.0)])
-    return q * np.cumprod(flips, axis=0)[..., None]
 
 
 def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -321,7 +313,8 @@ def analyse(motion: Motion, filter: FilterSpec = FilterSpec(), euler_order: str 
     # every signal as one (channels, frames) array, time last: positions and local quaternions
     stacked = np.concatenate([
         np.moveaxis(positions, 0, -1).reshape(-1, n_frames),
-        np.moveaxis(_continuous(np.asarray(motion.rotations)[:, rot]), 0, -1).reshape(-1, n_frames),
+        # (4, F, R) sign-continuous in time -> (R, 4, F)
+        np.transpose(Q.align_signs(Q.gather_c(motion.rotations, rot), axis=1), (2, 0, 1)).reshape(-1, n_frames),
     ])
     smooth, d1, d2 = smooth_derivatives(stacked, fps, filter, axis=-1)
     n_pos = 3 * n_joints

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from usdmotion.ops.edit import _quat as Q
+from usdmotion import quat_planes as Q
 from usdmotion.ops.edit._common import EditError
 
 CHANNELS = ("auto", "rx", "ry", "rz")

@@ -14,7 +14,7 @@ import math
 import numpy as np
 
 from usdmotion.motion import Motion
-from usdmotion.ops.edit import _quat as Q
+from usdmotion import quat_planes as Q
 from usdmotion.ops.edit._common import EditError, frame_range, rebuild, select_joints
 
 INTERPOLATIONS = ("cubic", "linear")

@@ -1,11 +1,11 @@
-"""Fast NumPy quaternion kernels for the editing operations.
+"""Fast NumPy quaternion kernels on component planes, for the editing operations and analysis.
 
 The core :mod:`usdmotion.rotations` functions work on ``(..., 4)`` arrays for NumPy and
 JAX alike; on ``(10_000, 38, 4)`` arrays their strided component access costs 2-4x more
 than needed. These kernels take **component-first** arrays ``(4, ...)`` (contiguous
 w, x, y, z planes; same wxyz convention and Hamilton product as ``rotations``) and are
-used inside the hot paths of :mod:`usdmotion.ops.edit`. Convert with :func:`to_c` /
-:func:`from_c` once per operation.
+used inside the hot paths of :mod:`usdmotion.ops.edit` and by :mod:`usdmotion.ops.analyse`
+(sign continuity). Convert with :func:`to_c` / :func:`from_c` once per operation.
 """
 
 from __future__ import annotations
