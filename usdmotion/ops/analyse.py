@@ -38,11 +38,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from usdmotion import quat_planes as Q
 from usdmotion.anthropometry import BodyModel
 from usdmotion.errors import InputError
 from usdmotion.kinematics import rest_positions, world_rotations_positions
 from usdmotion.motion import Motion
-from usdmotion import quat_planes as Q
 from usdmotion.ops.smoothing import FilterSpec, smooth_derivatives
 from usdmotion.skeleton_names import children_map, distal_joints, proximal_joint, rest_tolerance
 

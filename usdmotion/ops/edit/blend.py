@@ -21,8 +21,8 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from usdmotion.motion import Motion
 from usdmotion import quat_planes as Q
+from usdmotion.motion import Motion
 from usdmotion.ops.edit import align as A
 from usdmotion.ops.edit import trajectory as T
 from usdmotion.ops.edit._common import EditError, animated_translation_joints, rebuild, select_joints, smoothstep

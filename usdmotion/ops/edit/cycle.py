@@ -20,8 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from usdmotion.motion import Motion
 from usdmotion import quat_planes as Q
+from usdmotion.motion import Motion
 from usdmotion.ops.edit import trajectory as T
 from usdmotion.ops.edit._common import EditError, frame_range, smoothstep
 from usdmotion.ops.edit.timewarp import trim

@@ -18,8 +18,8 @@ from collections.abc import Iterable, Mapping
 
 import numpy as np
 
-from usdmotion.motion import Motion
 from usdmotion import quat_planes as Q
+from usdmotion.motion import Motion
 from usdmotion.ops.edit._common import EditError, joint_index, rebuild
 from usdmotion.rotations import euler_to_quat, quat_log
 

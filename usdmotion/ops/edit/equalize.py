@@ -27,8 +27,8 @@ import math
 
 import numpy as np
 
-from usdmotion.motion import Motion
 from usdmotion import quat_planes as Q
+from usdmotion.motion import Motion
 from usdmotion.ops.edit._common import EditError, animated_translation_joints, rebuild, select_joints
 
 KERNEL = (1.0 / 16.0, 1.0 / 4.0, 3.0 / 8.0, 1.0 / 4.0, 1.0 / 16.0)

@@ -13,8 +13,8 @@ import math
 
 import numpy as np
 
-from usdmotion.motion import Motion
 from usdmotion import quat_planes as Q
+from usdmotion.motion import Motion
 from usdmotion.ops.edit._common import EditError, frame_range, rebuild, select_joints
 
 INTERPOLATIONS = ("cubic", "linear")

@@ -21,8 +21,8 @@ import math
 
 import numpy as np
 
-from usdmotion.motion import Motion
 from usdmotion import quat_planes as Q
+from usdmotion.motion import Motion
 from usdmotion.ops.edit._common import EditError, ground_axes, rebuild, translations_or_none
 
 _STILL = 1e-9
