@@ -17,8 +17,10 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(REPO / "tests"))
 
-from usdmotion import rotations as R  # noqa: E402
+from edit_support import angle_between, frame_steps, position_spectrum, walker  # noqa: E402
+
 from usdmotion.io import read_motion  # noqa: E402
 from usdmotion.kinematics import joint_positions  # noqa: E402
 from usdmotion.ops import edit as E  # noqa: E402
@@ -29,45 +31,28 @@ from usdmotion.ops.edit.cycle import loop_end  # noqa: E402
 ASF_CM = 2.54 / 0.45  # CMU files: 1 unit = 1/0.45 inch
 
 
-def steps(p):
-    """Per-frame max joint displacement and max velocity change (file units)."""
-    return (np.linalg.norm(np.diff(p, axis=0), axis=-1).max(1), np.linalg.norm(np.diff(p, 2, axis=0), axis=-1).max(1))
-
-
-def angle(q1, q2):
-    rel = R.quat_mul(R.quat_conjugate(q1), q2)
-    return 2 * np.arctan2(np.linalg.norm(rel[..., 1:], axis=-1), np.abs(rel[..., 0]))
-
 
 def equaliser(data: Path) -> dict:
     m = read_motion(data / "cmu/cgspeed_12_01_walk.bvh")
     identity = E.equalize(m, gains=[1.0] * 6)
     walk = E.trim(m, 1)
 
-    def spectrum(motion):
-        p = joint_positions(motion)
-        x = (p - p[:, :1]).reshape(len(p), -1)
-        x = x - np.linspace(x[0], x[-1], len(x))
-        return np.fft.rfft(x, axis=0), np.fft.rfftfreq(len(x), 1 / motion.fps)
-
-    X0, f = spectrum(walk)
-    X1, _ = spectrum(E.equalize(walk, gains=[0, 0]))
+    X0, f = position_spectrum(walk)
+    X1, _ = position_spectrum(E.equalize(walk, gains=[0, 0]))
     high = f >= 15
     low = np.fft.irfft(np.where((f < 2)[:, None], X1 - X0, 0), n=walk.n_frames, axis=0)
     # a root turning through ±180° with noise (synthetic; see tests/test_edit_equalize.py)
-    sys.path.insert(0, str(REPO / "tests"))
-    from edit_support import walker
-
     noisy = walker(n_frames=240, heading_deg=150, turn_deg_per_frame=0.25, noise_deg=0.8, seed=3)
     out = E.equalize(noisy, gains=[0, 0, 0])
+    step_in, step_out = (np.degrees(angle_between(q.rotations[1:, 0], q.rotations[:-1, 0])) for q in (noisy, out))
     return {
-        "unit_gains_max_rotation_error_rad": float(angle(identity.rotations, m.rotations).max()),
+        "unit_gains_max_rotation_error_rad": float(angle_between(identity.rotations, m.rotations).max()),
         "unit_gains_max_translation_error": float(np.abs(identity.root_translation - m.root_translation).max()),
         "zero_bands_0_1_energy_above_15Hz_ratio": float((np.abs(X1[high]) ** 2).sum() / (np.abs(X0[high]) ** 2).sum()),
         "zero_bands_0_1_low_band_below_2Hz_max_change_units": float(np.abs(low).max()),
         "zero_bands_0_1_low_band_below_2Hz_max_change_cm": float(np.abs(low).max() * ASF_CM),
-        "wrap_input_max_step_deg": float(np.degrees(angle(noisy.rotations[1:, 0], noisy.rotations[:-1, 0]).max())),
-        "wrap_output_max_step_deg": float(np.degrees(angle(out.rotations[1:, 0], out.rotations[:-1, 0]).max())),
+        "wrap_input_max_step_deg": float(step_in.max()),
+        "wrap_output_max_step_deg": float(step_out.max()),
     }
 
 
@@ -77,13 +62,13 @@ def cycle_check(data: Path) -> tuple[dict, dict]:
     stop = loop_end(m, start, n)
     out = E.cycle(m, start, stop, transition=n, loops=loops)
     period = stop - start - n
-    step, jerk = steps(joint_positions(out))
-    step0, jerk0 = steps(joint_positions(E.trim(m, start, stop)))
+    step, jerk = frame_steps(joint_positions(out))
+    step0, jerk0 = frame_steps(joint_positions(E.trim(m, start, stop)))
     fade = np.concatenate([np.arange(period - n - 1, period + 1) + k * period for k in range(loops - 1)])
     per_loop = np.linalg.norm(np.diff(out.root_translation[::period][:, [0, 2]], axis=0), axis=1)
     # the same gait phase in the original: output frame k shows loop frame (k + n) mod P, which is original frame
     # start + φ (or a fade of start + φ and start + P + φ); compare the seam frames with both
-    _, jerk_all = steps(joint_positions(m))
+    _, jerk_all = frame_steps(joint_positions(m))
     phase = (fade[:-1] + 1 + n) % period  # jerk[k] is centred on output frame k + 1
     same_phase = np.maximum(jerk_all[start + phase - 1], jerk_all[np.minimum(start + period + phase - 1,
                                                                                len(jerk_all) - 1)])
@@ -107,11 +92,12 @@ def blend_speed(data: Path) -> tuple[dict, dict]:
     run = read_motion(data / "bandai1/dataset-1_run_normal_001.bvh")
     out = E.blend(walk, run, transition=10, align="peaks", align_joint="UpperLeg_L")
     pw, pr, pb = joint_positions(walk), joint_positions(run), joint_positions(out)
-    step, jerk = steps(pb)
+    step, jerk = frame_steps(pb)
+    (walk_step, walk_jerk), (run_step, run_jerk) = frame_steps(pw), frame_steps(pr)
     keys = [(0, 1.0), (100, 2.0), (194, 0.5)]
     fast = E.speed(walk, keys=keys)
     ps = joint_positions(fast)
-    s_step, s_jerk = steps(ps)
+    s_step, s_jerk = frame_steps(ps)
     from scipy.interpolate import PchipInterpolator
 
     from usdmotion.ops.edit.timewarp import speed_times
@@ -122,10 +108,10 @@ def blend_speed(data: Path) -> tuple[dict, dict]:
     s0, s1 = A.rotation_channels(walk.rotations[:, thigh], run.rotations[:, thigh])
     figures = {
         "blend_frames": out.n_frames, "walk_frames": walk.n_frames, "run_frames": run.n_frames,
-        "blend_max_step_cm": float(step.max()), "walk_max_step_cm": float(steps(pw)[0].max()),
-        "run_max_step_cm": float(steps(pr)[0].max()),
-        "blend_max_velocity_change_cm": float(jerk.max()), "walk_max_velocity_change_cm": float(steps(pw)[1].max()),
-        "run_max_velocity_change_cm": float(steps(pr)[1].max()),
+        "blend_max_step_cm": float(step.max()), "walk_max_step_cm": float(walk_step.max()),
+        "run_max_step_cm": float(run_step.max()),
+        "blend_max_velocity_change_cm": float(jerk.max()), "walk_max_velocity_change_cm": float(walk_jerk.max()),
+        "run_max_velocity_change_cm": float(run_jerk.max()),
         "hips_end_speed_cm_per_frame": float(np.linalg.norm(np.diff(pb[-6:, 1, [0, 2]], axis=0), axis=1).mean()),
         "run_hips_speed_cm_per_frame": float(np.linalg.norm(np.diff(pr[-6:, 1, [0, 2]], axis=0), axis=1).mean()),
         "speed_curve_frames": fast.n_frames, "speed_max_step_cm": float(s_step.max()),

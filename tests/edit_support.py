@@ -58,6 +58,17 @@ def angle_between(q1: np.ndarray, q2: np.ndarray) -> np.ndarray:
     return 2 * np.arctan2(np.linalg.norm(rel[..., 1:], axis=-1), np.abs(rel[..., 0]))
 
 
+def position_spectrum(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
+    """``(X (K, 3J) complex, f (K,) Hz)``: spectrum of the joint positions relative to the root,
+    each channel detrended by the line through its first and last frame (no wrap-around step)."""
+    from usdmotion.kinematics import joint_positions
+
+    p = joint_positions(motion)
+    x = (p - p[:, :1]).reshape(len(p), -1)
+    x = x - np.linspace(x[0], x[-1], len(x))
+    return np.fft.rfft(x, axis=0), np.fft.rfftfreq(len(x), 1 / motion.fps)
+
+
 def frame_steps(positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Per-frame max joint displacement ``(F-1,)`` and max velocity change ``(F-2,)``."""
     step = np.linalg.norm(np.diff(positions, axis=0), axis=-1).max(axis=1)
