@@ -28,31 +28,15 @@ def convert(
 ) -> None:
     """Convert a motion between BVH and OpenUSD (UsdSkel)."""
     from usdmotion.cli._progress import progress
-    from usdmotion.errors import OutputError
-    from usdmotion.io import write_motion
+    from usdmotion.io.convert import check_convert_paths, convert_motion
 
-    if source.resolve() == output.resolve():
-        raise OutputError(f"{output}: output would overwrite the input")
+    check_convert_paths(source, output, mesh)
     start = time.perf_counter()
     motion = read_input(source, units, up_axis, root_offset, lenient, ignore_joint_positions)
-    options = {}
-    if mesh:
-        from usdmotion.io.usd_mesh import body_decorator
-        from usdmotion.skin import build_body
-
-        if output.suffix.lower() not in (".usd", ".usda", ".usdc", ".usdz"):
-            raise OutputError(f"{output}: --mesh needs a USD output (.usd, .usda, .usdc, .usdz)")
-        with progress("building the body mesh"):
-            options["decorate"] = body_decorator(build_body(motion))
     with progress(f"writing {output.name}"):
-        write_motion(motion, output, **options)
-    problems = []
-    if validate and output.suffix.lower() in (".usd", ".usda", ".usdc", ".usdz"):
-        from usdmotion.io.usd import validate_stage
-
-        problems = validate_stage(str(output))
-        for problem in problems:
-            typer.echo(f"usdmotion: warning: {output}: {problem}", err=True)
+        problems = convert_motion(motion, output, mesh, validate)
+    for problem in problems:
+        typer.echo(f"usdmotion: warning: {output}: {problem}", err=True)
     typer.echo(f"wrote {output}: {int((~motion.end_sites).sum())} joints (+{int(motion.end_sites.sum())} end sites), "
                f"{motion.n_frames} frames at {motion.fps:.6g} fps ({motion.duration:.2f} s), "
                f"{motion.meters_per_unit:g} m/unit, {motion.up_axis}-up, root offset {motion.root_offset} "

@@ -1,0 +1,64 @@
+"""``OUT_DIR/catalogue.parquet``: one row per (operation, take), written atomically.
+
+Columns common to every operation are in :data:`COLUMNS`; ``analyze`` adds its kinematic
+summary columns (:data:`ANALYZE_COLUMNS`). Units: bytes, seconds, metres, m/s.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from usdmotion.io.atomic import atomic_output
+
+#: name → pyarrow type name (see :func:`schema`).
+COLUMNS = {
+    "operation": "string", "take": "string", "source": "string", "relpath": "string",
+    "size_bytes": "int64", "mtime": "float64", "sha256": "string",
+    "rig_family": "string", "joints": "int32", "end_sites": "int32", "frames": "int32", "fps": "float64",
+    "duration_s": "float64", "meters_per_unit": "float64", "units": "string", "up_axis": "string",
+    "outputs": "list<string>", "status": "string", "error": "string", "warnings": "string",
+    "seconds": "float64", "worker": "string", "options": "string",
+}
+ANALYZE_COLUMNS = {
+    "peak_joint_speed": "float64", "peak_joint_speed_joint": "string", "peak_joint_speed_time_s": "float64",
+    "com_peak_speed": "float64", "com_mean_horizontal_speed": "float64",
+    "com_vertical_min": "float64", "com_vertical_max": "float64", "com_vertical_range": "float64",
+}
+ALL_COLUMNS = {**COLUMNS, **ANALYZE_COLUMNS}
+
+
+def schema():
+    """The ``pyarrow.Schema`` of the catalogue."""
+    import pyarrow as pa
+
+    types = {"string": pa.string(), "int64": pa.int64(), "int32": pa.int32(), "float64": pa.float64(),
+             "list<string>": pa.list_(pa.string())}
+    return pa.schema([(name, types[kind]) for name, kind in ALL_COLUMNS.items()])
+
+
+def read_catalogue(path: str | Path) -> dict[tuple[str, str], dict]:
+    """Rows of an existing catalogue by ``(operation, take)``; empty when there is none
+    (or it cannot be read: the batch then redoes every take)."""
+    import pyarrow.parquet as pq
+
+    path = Path(path)
+    if not path.is_file():
+        return {}
+    try:
+        rows = pq.read_table(path).to_pylist()
+    except Exception:  # noqa: BLE001 - an unreadable catalogue only costs a full re-run
+        return {}
+    return {(r.get("operation"), r.get("take")): r for r in rows}
+
+
+def write_catalogue(rows: dict[tuple[str, str], dict], path: str | Path) -> Path:
+    """Write all rows (sorted by operation, source path) atomically."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    ordered = sorted(rows.values(), key=lambda r: (r.get("operation") or "", r.get("relpath") or ""))
+    names = list(ALL_COLUMNS)
+    table = pa.Table.from_pylist([{k: r.get(k) for k in names} for r in ordered], schema=schema())
+    with atomic_output(path) as tmp:
+        pq.write_table(table, str(tmp))
+    return Path(path)

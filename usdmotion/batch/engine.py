@@ -1,0 +1,81 @@
+"""The Dask side: a local cluster (processes) or a connection to an existing scheduler,
+and the loop that submits jobs and yields their rows as they finish."""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import os
+import uuid
+from collections.abc import Iterable, Iterator
+
+from usdmotion.batch.plan import Job
+from usdmotion.errors import InputError
+
+
+def default_workers() -> int:
+    """One worker process per core the process may use."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
+@contextlib.contextmanager
+def dask_client(workers: int | None = None, scheduler: str | None = None,
+                memory_limit: str | int = "auto") -> Iterator:
+    """A ``distributed.Client``: on ``scheduler`` (``tcp://HOST:PORT``) if given, else on a
+    ``LocalCluster`` of ``workers`` single-threaded processes (default: one per core),
+    each limited to ``memory_limit`` (``"auto"``: the machine's memory shared equally).
+
+    The cluster and client are always closed on exit.
+    """
+    from distributed import Client, LocalCluster
+
+    if scheduler is not None:
+        try:
+            client = Client(scheduler, timeout="10s")
+        except (OSError, TimeoutError) as exc:
+            raise InputError(scheduler, f"cannot connect to the Dask scheduler ({exc})") from None
+        with client:
+            yield client
+        return
+    if workers is not None and workers < 1:
+        raise ValueError(f"--workers must be at least 1, got {workers}")
+    with LocalCluster(n_workers=workers or default_workers(), threads_per_worker=1, processes=True,
+                      memory_limit=memory_limit, dashboard_address=None,
+                      silence_logs=logging.ERROR) as cluster, Client(cluster) as client:
+        yield client
+
+
+def run_jobs(client, jobs: Iterable[Job]) -> Iterator[dict]:
+    """Submit every job (one task per take) and yield catalogue rows in completion order.
+
+    A task whose worker dies is re-run on another worker by the scheduler; one that fails
+    anyway (e.g. it kills every worker it lands on) yields an error row.
+    """
+    from distributed import as_completed
+
+    from usdmotion.batch.tasks import run_job
+
+    run = uuid.uuid4().hex[:8]
+    futures = {client.submit(run_job, job, key=f"usdmotion-{job.operation}-{job.take}-{run}", pure=False): job
+               for job in jobs}
+    try:
+        for future in as_completed(futures):
+            job = futures.pop(future)
+            try:
+                yield future.result()
+            except Exception as exc:  # noqa: BLE001 - KilledWorker, lost scheduler: an error row
+                yield _failed_row(job, exc)
+            future.release()
+    finally:
+        for future in futures:
+            future.cancel()
+
+
+def _failed_row(job: Job, exc: BaseException) -> dict:
+    text = str(exc).splitlines()[0] if str(exc) else ""
+    return {"operation": job.operation, "take": job.take, "source": job.source, "relpath": job.relpath,
+            "options": job.options_key, "outputs": [], "status": "error",
+            "error": f"task failed on the cluster ({type(exc).__name__}: {text})"}

@@ -1,0 +1,101 @@
+"""Which takes a batch processes, where their outputs go, and which are already up to date."""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from usdmotion.errors import InputError
+
+#: Operation → what it writes per take (see :func:`outputs_for`).
+OPERATIONS = ("convert", "analyze", "segment", "retarget", "render")
+MOTION_SUFFIXES = (".bvh", ".usd", ".usda", ".usdc", ".usdz")
+DEFAULT_INCLUDE = ("**/*.bvh", "**/*.usd", "**/*.usda", "**/*.usdc", "**/*.usdz")
+FRAMES_DIR = "frames"
+CATALOGUE = "catalogue.parquet"
+
+
+@dataclass(frozen=True)
+class Job:
+    """One take to process: everything a worker needs, as plain picklable values.
+
+    ``outputs`` maps an output role (``"motion"``, ``"summary"``, ``"frames"``...) to an
+    absolute path; ``params`` are the operation's options; ``read_options`` are
+    ``read_motion`` keyword arguments.
+    """
+
+    operation: str
+    take: str
+    source: str
+    relpath: str
+    outputs: dict = field(hash=False)
+    read_options: dict = field(hash=False)
+    params: dict = field(hash=False)
+
+    @property
+    def options_key(self) -> str:
+        """The options that shape the outputs, as canonical JSON (a changed option redoes the take)."""
+        return json.dumps({"read": self.read_options, "params": self.params}, sort_keys=True, default=str)
+
+
+def take_id(relpath: str) -> str:
+    """Partition-safe id of a take: its path relative to the source folder, ``/`` → ``__``."""
+    return relpath.replace("/", "__")
+
+
+def find_sources(src_dir: Path, include: tuple[str, ...] = DEFAULT_INCLUDE, exclude: Path | None = None) -> list[Path]:
+    """Motion files under ``src_dir`` matching any ``include`` glob, sorted; ``exclude`` (the
+    output folder, when inside the source) is skipped."""
+    if not src_dir.is_dir():
+        raise InputError(src_dir, "source folder does not exist (or is not a folder)")
+    found = {p for pattern in include for p in src_dir.glob(pattern)}
+    skip = exclude.resolve() if exclude is not None else None
+    files = [p for p in found if p.is_file() and p.suffix.lower() in MOTION_SUFFIXES
+             and (skip is None or not p.resolve().is_relative_to(skip))]
+    return sorted(files)
+
+
+def outputs_for(operation: str, out_dir: Path, relpath: str, params: dict) -> dict[str, str]:
+    """Output paths of one take, mirroring the source tree under ``out_dir``."""
+    base = out_dir / Path(relpath).parent / Path(relpath).stem
+    if operation == "convert":
+        return {"motion": f"{base}.{params['to']}"}
+    if operation == "analyze":
+        return {"summary": f"{base}.summary.json",
+                "frames": str(out_dir / FRAMES_DIR / f"take={take_id(relpath)}" / "part-0.parquet")}
+    if operation == "segment":
+        outs = {"segments": f"{base}.segments.json"}
+        if params.get("export_clips"):
+            outs["clips"] = f"{base}_clips"
+        return outs
+    if operation == "retarget":
+        return {"motion": f"{base}.{params['to']}", "report": f"{base}.retarget.json"}
+    if operation == "render":
+        return {"video": f"{base}.mp4"}
+    raise ValueError(f"unknown batch operation {operation!r} (use {', '.join(OPERATIONS)})")
+
+
+def plan_jobs(operation: str, src_dir: Path, out_dir: Path, read_options: dict, params: dict,
+              include: tuple[str, ...] = DEFAULT_INCLUDE) -> list[Job]:
+    """One :class:`Job` per source file (absolute paths, sorted)."""
+    src_dir, out_dir = Path(src_dir).absolute(), Path(out_dir).absolute()
+    jobs = []
+    for path in find_sources(src_dir, include, out_dir):
+        rel = path.relative_to(src_dir).as_posix()
+        jobs.append(Job(operation, take_id(rel), str(path), rel, outputs_for(operation, out_dir, rel, params),
+                        dict(read_options), dict(params)))
+    return jobs
+
+
+def up_to_date(job: Job, previous: dict | None) -> bool:
+    """True when the last catalogue row is ok with the same options and every output exists
+    and is newer than the source."""
+    if previous is None or previous.get("status") != "ok" or previous.get("options") != job.options_key:
+        return False
+    try:
+        source_mtime = os.stat(job.source).st_mtime
+        return all(os.stat(p).st_mtime >= source_mtime for p in job.outputs.values())
+    except OSError:
+        return False

@@ -1,0 +1,82 @@
+"""``run_batch``: plan, skip what is up to date, run the rest on Dask, keep the catalogue."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from usdmotion.batch.catalogue import read_catalogue, write_catalogue
+from usdmotion.batch.plan import CATALOGUE, DEFAULT_INCLUDE, plan_jobs, up_to_date
+
+#: Seconds between catalogue saves during a run (a killed client loses at most this much).
+SAVE_EVERY_S = 10.0
+
+
+@dataclass
+class BatchResult:
+    """What a batch did. ``rows`` are this run's catalogue rows (processed takes only)."""
+
+    total: int
+    skipped: int
+    rows: list[dict] = field(default_factory=list)
+    seconds: float = 0.0
+    catalogue: Path | None = None
+
+    @property
+    def failed(self) -> list[dict]:
+        return [r for r in self.rows if r.get("status") != "ok"]
+
+    @property
+    def done(self) -> int:
+        return len(self.rows) - len(self.failed)
+
+    def summary_line(self, operation: str) -> str:
+        rate = len(self.rows) / self.seconds if self.seconds > 0 else 0.0
+        frames = sum(r.get("frames") or 0 for r in self.rows if r.get("status") == "ok")
+        return (f"batch {operation}: {self.total} takes: {self.done} done, {self.skipped} up to date, "
+                f"{len(self.failed)} failed; {frames} frames in {self.seconds:.1f} s ({rate:.2f} takes/s); "
+                f"catalogue {self.catalogue}")
+
+
+def run_batch(operation: str, src_dir: str | Path, out_dir: str | Path, read_options: dict | None = None,
+              params: dict | None = None, include: tuple[str, ...] = DEFAULT_INCLUDE, force: bool = False,
+              workers: int | None = None, scheduler: str | None = None,
+              on_start: Callable[[int], None] | None = None,
+              on_row: Callable[[dict], None] | None = None) -> BatchResult:
+    """Run ``operation`` on every take under ``src_dir``; outputs and ``catalogue.parquet`` in ``out_dir``.
+
+    Takes whose catalogue row is ok (same options) and whose outputs are newer than the
+    source are skipped unless ``force``. ``on_start(n)`` is told how many takes will run,
+    ``on_row(row)`` gets each finished row. The catalogue is saved every
+    :data:`SAVE_EVERY_S` seconds, at the end, and on Ctrl-C (atomically each time).
+    """
+    from usdmotion.batch.engine import dask_client, run_jobs
+
+    start = time.perf_counter()
+    out_dir = Path(out_dir)
+    jobs = plan_jobs(operation, Path(src_dir), out_dir, read_options or {}, params or {}, include)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    path = out_dir / CATALOGUE
+    rows = read_catalogue(path)
+    todo = [j for j in jobs if force or not up_to_date(j, rows.get((j.operation, j.take)))]
+    result = BatchResult(total=len(jobs), skipped=len(jobs) - len(todo), catalogue=path)
+    if on_start is not None:
+        on_start(len(todo))
+    saved = time.perf_counter()
+    try:
+        if todo:
+            with dask_client(workers, scheduler) as client:
+                for row in run_jobs(client, todo):
+                    rows[(row["operation"], row["take"])] = row
+                    result.rows.append(row)
+                    if on_row is not None:
+                        on_row(row)
+                    if time.perf_counter() - saved > SAVE_EVERY_S:
+                        write_catalogue(rows, path)
+                        saved = time.perf_counter()
+    finally:
+        write_catalogue(rows, path)
+        result.seconds = time.perf_counter() - start
+    return result

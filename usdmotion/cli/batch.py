@@ -1,0 +1,124 @@
+"""``usdmotion batch convert|analyze|segment|retarget|render SRC_DIR OUT_DIR``: a whole library on Dask."""
+
+from __future__ import annotations
+
+from enum import Enum
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from usdmotion.cli._options import IgnoreJointPositions, Lenient, RootOffset, RootOffsetChoice, UpAxis, Units
+from usdmotion.cli.app import app
+
+batch_app = typer.Typer(name="batch", no_args_is_help=True, help="Process a whole motion library (resumable, "
+                        "catalogue.parquet) on a local Dask cluster or an existing one.")
+app.add_typer(batch_app, name="batch", rich_help_panel="Convert and inspect")
+
+SrcDir = Annotated[Path, typer.Argument(help="Folder of motion files (searched recursively).", show_default=False)]
+OutDir = Annotated[Path, typer.Argument(help="Output folder: mirrors the source tree; holds catalogue.parquet.",
+                                        show_default=False)]
+Include = Annotated[list[str] | None, typer.Option(help="Glob(s) of takes to process, relative to SRC_DIR "
+                                                        "(default: every .bvh/.usd* file). Repeatable.",
+                                                   show_default=False)]
+Workers = Annotated[int | None, typer.Option(help="Worker processes of the local cluster (default: one per core).",
+                                             show_default=False, min=1)]
+Scheduler = Annotated[str | None, typer.Option(help="Run on an existing Dask cluster: tcp://HOST:8786 (workers need "
+                                                    "usdmotion installed and the same paths).", show_default=False)]
+Force = Annotated[bool, typer.Option("--force", help="Redo takes that are up to date.")]
+
+
+class ConvertTo(str, Enum):
+    usdc = "usdc"
+    usdz = "usdz"
+    usda = "usda"
+    bvh = "bvh"
+
+
+def _read_options(units, up_axis, root_offset, lenient, ignore_joint_positions=False) -> dict:
+    """``read_motion`` keyword arguments from the shared reading options."""
+    return {"root_offset": root_offset.value, "units": units, "up_axis": None if up_axis is None else up_axis.value,
+            "lenient": lenient, "ignore_joint_positions": ignore_joint_positions}
+
+
+def _run(operation: str, src_dir: Path, out_dir: Path, read_options: dict, params: dict, include, force: bool,
+         workers, scheduler) -> None:
+    """Run the batch with a progress bar (takes/s, ETA), print the summary and failures; exit 1 if any failed."""
+    from usdmotion.batch import run_batch
+    from usdmotion.batch.plan import DEFAULT_INCLUDE
+    from usdmotion.cli._progress import progress
+
+    with progress(f"batch {operation}", total=0, unit="takes") as update:
+        result = run_batch(operation, src_dir, out_dir, read_options, params,
+                           tuple(include) if include else DEFAULT_INCLUDE, force, workers, scheduler,
+                           on_start=lambda n: update(total=n), on_row=lambda row: update(advance=1))
+    for row in result.failed:
+        where = "" if row["error"].startswith(row["source"]) else f"{row['source']}: "
+        typer.echo(f"usdmotion: error: {where}{row['error']}", err=True)
+    typer.echo(result.summary_line(operation))
+    if result.failed:
+        raise typer.Exit(1)
+
+
+@batch_app.command("convert")
+def convert(src_dir: SrcDir, out_dir: OutDir,
+            to: Annotated[ConvertTo, typer.Option("--to", help="Output format.")] = ConvertTo.usdc,
+            mesh: Annotated[bool, typer.Option("--mesh", help="Add a skinned body Mesh (USD outputs).")] = False,
+            include: Include = None, workers: Workers = None, scheduler: Scheduler = None, force: Force = False,
+            units: Units = None, up_axis: UpAxis = None, root_offset: RootOffset = RootOffsetChoice.auto,
+            lenient: Lenient = False, ignore_joint_positions: IgnoreJointPositions = False) -> None:
+    """Convert every take (like ``usdmotion convert``)."""
+    if mesh and to == ConvertTo.bvh:
+        raise ValueError("--mesh needs a USD output (--to usdc, usdz or usda)")
+    _run("convert", src_dir, out_dir, _read_options(units, up_axis, root_offset, lenient, ignore_joint_positions),
+         {"to": to.value, "mesh": mesh}, include, force, workers, scheduler)
+
+
+@batch_app.command("analyze")
+def analyze(src_dir: SrcDir, out_dir: OutDir, include: Include = None, workers: Workers = None,
+            scheduler: Scheduler = None, force: Force = False, units: Units = None, up_axis: UpAxis = None,
+            root_offset: RootOffset = RootOffsetChoice.auto, lenient: Lenient = False) -> None:
+    """Kinematics of every take (like ``usdmotion analyze --summary --out .parquet``): summaries,
+    catalogue columns and the per-frame tables in OUT_DIR/frames/ (partitioned by take)."""
+    _run("analyze", src_dir, out_dir, _read_options(units, up_axis, root_offset, lenient), {}, include, force,
+         workers, scheduler)
+
+
+@batch_app.command("segment")
+def segment(src_dir: SrcDir, out_dir: OutDir,
+            export_clips: Annotated[bool, typer.Option("--export-clips", help="Also write one BVH per segment.")]
+            = False, include: Include = None, workers: Workers = None, scheduler: Scheduler = None,
+            force: Force = False, units: Units = None, up_axis: UpAxis = None,
+            root_offset: RootOffset = RootOffsetChoice.auto, lenient: Lenient = False) -> None:
+    """Segment every take into actions (like ``usdmotion segment --out``)."""
+    _run("segment", src_dir, out_dir, _read_options(units, up_axis, root_offset, lenient),
+         {"export_clips": export_clips}, include, force, workers, scheduler)
+
+
+@batch_app.command("retarget")
+def retarget(src_dir: SrcDir, out_dir: OutDir,
+             target: Annotated[Path, typer.Option(help="Target skeleton (BVH or UsdSkel).", show_default=False)],
+             to: Annotated[ConvertTo, typer.Option("--to", help="Output format.")] = ConvertTo.usdc,
+             include: Include = None, workers: Workers = None, scheduler: Scheduler = None, force: Force = False,
+             units: Units = None, up_axis: UpAxis = None, root_offset: RootOffset = RootOffsetChoice.auto,
+             lenient: Lenient = False) -> None:
+    """Retarget every take onto one rig (like ``usdmotion retarget --target --report``)."""
+    from usdmotion.errors import InputError
+
+    if not target.is_file():
+        raise InputError(target, "target skeleton not found")
+    _run("retarget", src_dir, out_dir, _read_options(units, up_axis, root_offset, lenient),
+         {"to": to.value, "target": str(target.absolute())}, include, force, workers, scheduler)
+
+
+@batch_app.command("render")
+def render(src_dir: SrcDir, out_dir: OutDir,
+           size: Annotated[str, typer.Option(help="Preview size WIDTHxHEIGHT.")] = "640x360",
+           include: Include = None, workers: Workers = None, scheduler: Scheduler = None, force: Force = False,
+           units: Units = None, up_axis: UpAxis = None, root_offset: RootOffset = RootOffsetChoice.auto,
+           lenient: Lenient = False) -> None:
+    """A preview MP4 of every take (like ``usdmotion render --size``)."""
+    from usdmotion.cli.render import _size
+
+    _run("render", src_dir, out_dir, _read_options(units, up_axis, root_offset, lenient), {"size": list(_size(size))},
+         include, force, workers, scheduler)

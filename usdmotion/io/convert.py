@@ -1,0 +1,48 @@
+"""Write a read motion to another format: the core of ``usdmotion convert`` and ``batch convert``.
+
+Both front ends call :func:`convert_motion` after ``read_motion``, so one take converted
+either way gives byte-identical files.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from usdmotion.errors import OutputError
+from usdmotion.motion import Motion
+
+USD_SUFFIXES = (".usd", ".usda", ".usdc", ".usdz")
+
+
+def check_convert_paths(source: str | os.PathLike, output: str | os.PathLike, mesh: bool = False) -> None:
+    """``OutputError`` when ``output`` would overwrite ``source`` or ``mesh`` asks for a non-USD output."""
+    source, output = Path(source), Path(output)
+    if source.resolve() == output.resolve():
+        raise OutputError(f"{output}: output would overwrite the input")
+    if mesh and output.suffix.lower() not in USD_SUFFIXES:
+        raise OutputError(f"{output}: --mesh needs a USD output (.usd, .usda, .usdc, .usdz)")
+
+
+def convert_motion(motion: Motion, output: str | os.PathLike, mesh: bool = False, validate: bool = True) -> list[str]:
+    """Write ``motion`` to ``output`` (format by extension, atomically); return validation problems.
+
+    Args:
+        mesh: add a volumetric body Mesh skinned to the Skeleton (USD outputs only).
+        validate: run ``pxr.UsdValidation`` on a USD output; the problems are returned, not raised.
+    """
+    from usdmotion.io import write_motion
+
+    output = Path(output)
+    options = {}
+    if mesh:
+        from usdmotion.io.usd_mesh import body_decorator
+        from usdmotion.skin import build_body
+
+        options["decorate"] = body_decorator(build_body(motion))
+    write_motion(motion, output, **options)
+    if validate and output.suffix.lower() in USD_SUFFIXES:
+        from usdmotion.io.usd import validate_stage
+
+        return list(validate_stage(str(output)))
+    return []
