@@ -13,6 +13,12 @@ from usdmotion.errors import InputError
 OPERATIONS = ("convert", "analyze", "segment", "retarget", "render")
 MOTION_SUFFIXES = (".bvh", ".usd", ".usda", ".usdc", ".usdz")
 DEFAULT_INCLUDE = ("**/*.bvh", "**/*.usd", "**/*.usda", "**/*.usdc", "**/*.usdz")
+#: ``read_motion`` keyword arguments a job starts from (what the single-file commands default to).
+DEFAULT_READ_OPTIONS = {"root_offset": "auto", "units": None, "up_axis": None, "lenient": False,
+                        "ignore_joint_positions": False}
+#: Per-operation parameters a job starts from.
+DEFAULT_PARAMS = {"convert": {"to": "usdc", "mesh": False}, "analyze": {}, "segment": {"export_clips": False},
+                  "retarget": {"to": "usdc"}, "render": {"size": [640, 360]}}
 FRAMES_DIR = "frames"
 CATALOGUE = "catalogue.parquet"
 
@@ -79,13 +85,18 @@ def outputs_for(operation: str, out_dir: Path, relpath: str, params: dict) -> di
 
 def plan_jobs(operation: str, src_dir: Path, out_dir: Path, read_options: dict, params: dict,
               include: tuple[str, ...] = DEFAULT_INCLUDE) -> list[Job]:
-    """One :class:`Job` per source file (absolute paths, sorted)."""
+    """One :class:`Job` per source file (absolute paths, sorted); options not given take
+    :data:`DEFAULT_READ_OPTIONS` and :data:`DEFAULT_PARAMS`."""
+    if operation not in OPERATIONS:
+        raise ValueError(f"unknown batch operation {operation!r} (use {', '.join(OPERATIONS)})")
+    read_options = {**DEFAULT_READ_OPTIONS, **read_options}
+    params = {**DEFAULT_PARAMS[operation], **params}
     src_dir, out_dir = Path(src_dir).absolute(), Path(out_dir).absolute()
     jobs = []
     for path in find_sources(src_dir, include, out_dir):
         rel = path.relative_to(src_dir).as_posix()
         jobs.append(Job(operation, take_id(rel), str(path), rel, outputs_for(operation, out_dir, rel, params),
-                        dict(read_options), dict(params)))
+                        read_options, params))
     return jobs
 
 

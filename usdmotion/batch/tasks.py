@@ -30,6 +30,7 @@ def run_job(job: Job) -> dict:
         try:
             row.update(_file_facts(job.source))
             created = _make_folders(job)
+            _remove_stale_temporaries(job)
             row.update(OPERATION_TASKS[job.operation](job, row))
             row["outputs"] = sorted(job.outputs.values())
         except (UsdMotionError, ValueError, KeyError, OSError, MemoryError) as exc:
@@ -51,6 +52,14 @@ def _make_folders(job: Job) -> list[Path]:
         folder.mkdir(parents=True, exist_ok=True)
         created.extend(missing)
     return sorted(set(created), key=lambda f: len(f.parts), reverse=True)
+
+
+def _remove_stale_temporaries(job: Job) -> None:
+    """Remove temporary files ``atomic_output`` left for this take's outputs when a worker
+    running it was killed (the take is being redone, so nothing else writes them)."""
+    for out in map(Path, job.outputs.values()):
+        for tmp in out.parent.glob(f".{out.stem}.*.tmp{out.suffix}"):
+            tmp.unlink(missing_ok=True)
 
 
 def _remove_empty(folders: list[Path]) -> None:
@@ -145,7 +154,7 @@ def analyze_columns(data: dict) -> dict:
     """Catalogue columns from an analysis summary: the fastest joint and the COM figures (SI units)."""
     peaks = [(j["peak_speed"]["value"], name, j["peak_speed"]["time"]) for name, j in data["joints"].items()
              if j["peak_speed"]["value"] is not None]
-    best = max(peaks) if peaks else (None, None, None)
+    best = max(peaks, key=lambda p: p[0]) if peaks else (None, None, None)  # first joint on a tie
     out = {"peak_joint_speed": best[0], "peak_joint_speed_joint": best[1], "peak_joint_speed_time_s": best[2]}
     com = data.get("com")
     if com:
