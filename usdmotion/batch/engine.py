@@ -48,6 +48,32 @@ def dask_client(workers: int | None = None, scheduler: str | None = None,
         yield client
 
 
+#: Modules each operation's tasks import (loaded once per worker by :func:`warm_up`).
+OPERATION_MODULES = {
+    "convert": ("usdmotion.io.convert", "usdmotion.io.usd", "usdmotion.io.bvh", "usdmotion.skeleton_names"),
+    "analyze": ("usdmotion.io", "usdmotion.ops.analyse", "usdmotion.ops.analyse_report", "usdmotion.anthropometry",
+                "pyarrow.parquet"),
+    "segment": ("usdmotion.io", "usdmotion.ops.segment", "usdmotion.ops.segment_io"),
+    "retarget": ("usdmotion.io", "usdmotion.ops.retarget_io", "usdmotion.ops.retarget_solve"),
+    "render": ("usdmotion.io", "usdmotion.render"),
+}
+
+
+def _import_modules(names: tuple[str, ...]) -> None:
+    import importlib
+
+    from usdmotion.batch import tasks  # noqa: F401 - the task module itself
+
+    for name in names:
+        importlib.import_module(name)
+
+
+def warm_up(client, operation: str) -> None:
+    """Import the operation's modules on every worker now, so the first takes do not pay for it
+    one after another (workers that join later import on their first take)."""
+    client.run(_import_modules, OPERATION_MODULES.get(operation, ()))
+
+
 def run_jobs(client, jobs: Iterable[Job]) -> Iterator[dict]:
     """Submit every job (one task per take) and yield catalogue rows in completion order.
 

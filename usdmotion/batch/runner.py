@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -42,17 +43,18 @@ class BatchResult:
 
 def run_batch(operation: str, src_dir: str | Path, out_dir: str | Path, read_options: dict | None = None,
               params: dict | None = None, include: tuple[str, ...] = DEFAULT_INCLUDE, force: bool = False,
-              workers: int | None = None, scheduler: str | None = None,
+              workers: int | None = None, scheduler: str | None = None, client=None,
               on_start: Callable[[int], None] | None = None,
               on_row: Callable[[dict], None] | None = None) -> BatchResult:
     """Run ``operation`` on every take under ``src_dir``; outputs and ``catalogue.parquet`` in ``out_dir``.
 
     Takes whose catalogue row is ok (same options) and whose outputs are newer than the
     source are skipped unless ``force``. ``on_start(n)`` is told how many takes will run,
-    ``on_row(row)`` gets each finished row. The catalogue is saved every
+    ``on_row(row)`` gets each finished row. ``client``: an open ``distributed.Client`` to
+    use instead of starting a cluster (``workers``/``scheduler`` are then ignored). The catalogue is saved every
     :data:`SAVE_EVERY_S` seconds, at the end, and on Ctrl-C (atomically each time).
     """
-    from usdmotion.batch.engine import dask_client, run_jobs
+    from usdmotion.batch.engine import dask_client, run_jobs, warm_up
 
     start = time.perf_counter()
     out_dir = Path(out_dir)
@@ -67,8 +69,9 @@ def run_batch(operation: str, src_dir: str | Path, out_dir: str | Path, read_opt
     saved = time.perf_counter()
     try:
         if todo:
-            with dask_client(workers, scheduler) as client:
-                for row in run_jobs(client, todo):
+            with contextlib.nullcontext(client) if client is not None else dask_client(workers, scheduler) as dask:
+                warm_up(dask, operation)
+                for row in run_jobs(dask, todo):
                     rows[(row["operation"], row["take"])] = row
                     result.rows.append(row)
                     if on_row is not None:
