@@ -228,3 +228,30 @@ def test_scheduler_and_two_worker_processes_survive_a_killed_worker(library, tmp
         assert sorted(r["relpath"] for r in again.rows) == sorted(MALFORMED)  # zero ok takes redone
     finally:
         cluster.close()
+
+
+def test_segment_and_render_on_one_cluster(library, tmp_path):
+    """Segment (with clips) and render on one LocalCluster, byte-identical to the single-file
+    commands (retarget's path is the same but its JAX compile is too slow for this suite)."""
+    from usdmotion.batch.engine import dask_client
+
+    take = library / "session2/trimmed/walk_part1.bvh"
+    out, single = tmp_path / "out", tmp_path / "single"
+    single.mkdir()
+    with dask_client(2) as client:
+        seg = run_batch("segment", library, out, params={"export_clips": True},
+                        include=("session2/trimmed/walk_part[12].bvh",), client=client)
+        ren = run_batch("render", library, out, include=("session2/walk_head.usda",), client=client)
+    for result in (seg, ren):
+        assert not result.failed, [r["error"] for r in result.failed]
+    assert len(seg.rows) == 2
+
+    assert main(["segment", str(take), "--out", str(single / "s.json"), "--export-clips", str(single / "clips")]) == 0
+    assert (single / "s.json").read_bytes() == (out / "session2/trimmed/walk_part1.segments.json").read_bytes()
+    clips = sorted((out / "session2/trimmed/walk_part1_clips").iterdir())
+    assert [c.name for c in clips] == sorted(c.name for c in (single / "clips").iterdir()) and clips
+    assert all(c.read_bytes() == (single / "clips" / c.name).read_bytes() for c in clips)
+
+    head = library / "session2/walk_head.usda"
+    assert main(["render", str(head), str(single / "v.mp4"), "--size", "640x360"]) == 0
+    assert (single / "v.mp4").read_bytes() == (out / "session2/walk_head.mp4").read_bytes()

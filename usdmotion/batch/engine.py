@@ -30,6 +30,18 @@ def dask_client(workers: int | None = None, scheduler: str | None = None,
 
     The cluster and client are always closed on exit.
     """
+    logger = logging.getLogger("distributed")
+    level = logger.level
+    logger.setLevel(logging.CRITICAL)  # shutdown races and lost workers are reported as rows, not log noise
+    try:
+        with _client(workers, scheduler, memory_limit) as client:
+            yield client
+    finally:
+        logger.setLevel(level)
+
+
+@contextlib.contextmanager
+def _client(workers: int | None, scheduler: str | None, memory_limit: str | int) -> Iterator:
     from distributed import Client, LocalCluster
 
     if scheduler is not None:
@@ -43,8 +55,8 @@ def dask_client(workers: int | None = None, scheduler: str | None = None,
     if workers is not None and workers < 1:
         raise ValueError(f"--workers must be at least 1, got {workers}")
     with LocalCluster(n_workers=workers or default_workers(), threads_per_worker=1, processes=True,
-                      memory_limit=memory_limit, dashboard_address=None,
-                      silence_logs=logging.ERROR) as cluster, Client(cluster) as client:
+                      memory_limit=memory_limit, dashboard_address=None, worker_dashboard_address=None,
+                      silence_logs=logging.CRITICAL) as cluster, Client(cluster) as client:
         yield client
 
 

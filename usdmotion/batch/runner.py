@@ -59,17 +59,17 @@ def run_batch(operation: str, src_dir: str | Path, out_dir: str | Path, read_opt
     start = time.perf_counter()
     out_dir = Path(out_dir)
     jobs = plan_jobs(operation, Path(src_dir), out_dir, read_options or {}, params or {}, include)
-    out_dir.mkdir(parents=True, exist_ok=True)
     path = out_dir / CATALOGUE
     rows = read_catalogue(path)
     todo = [j for j in jobs if force or not up_to_date(j, rows.get((j.operation, j.take)))]
     result = BatchResult(total=len(jobs), skipped=len(jobs) - len(todo), catalogue=path)
     if on_start is not None:
         on_start(len(todo))
-    saved = time.perf_counter()
-    try:
-        if todo:
-            with contextlib.nullcontext(client) if client is not None else dask_client(workers, scheduler) as dask:
+    if todo:
+        with contextlib.nullcontext(client) if client is not None else dask_client(workers, scheduler) as dask:
+            out_dir.mkdir(parents=True, exist_ok=True)  # only once the cluster is there (bad --scheduler: no output)
+            saved = time.perf_counter()
+            try:
                 warm_up(dask, operation)
                 for row in run_jobs(dask, todo):
                     rows[(row["operation"], row["take"])] = row
@@ -79,7 +79,7 @@ def run_batch(operation: str, src_dir: str | Path, out_dir: str | Path, read_opt
                     if time.perf_counter() - saved > SAVE_EVERY_S:
                         write_catalogue(rows, path)
                         saved = time.perf_counter()
-    finally:
-        write_catalogue(rows, path)
-        result.seconds = time.perf_counter() - start
+            finally:
+                write_catalogue(rows, path)
+    result.seconds = time.perf_counter() - start
     return result
