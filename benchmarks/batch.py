@@ -4,7 +4,9 @@ takes built from ``../shared/data`` (windows of every readable shared BVH, renam
 
 Measures takes/s and frames/s for ``convert`` (to USDC) and ``analyze``, the scheduler
 overhead per take (no-op tasks, and wall time not spent in takes), worker memory over the
-run (RSS sampled every 0.5 s), and the cluster start-up. Prints a table and writes
+run (RSS sampled every 0.5 s), the cluster start-up, and the 1-minute load average before
+each run (the machine is shared: a loaded machine gives the batch fewer cores than it has
+workers). Prints a table and writes
 ``benchmarks/results/batch.json``.
 
     .venv/bin/python benchmarks/batch.py [--takes 500] [--frames 240]
@@ -13,6 +15,7 @@ run (RSS sampled every 0.5 s), and the cluster start-up. Prints a table and writ
 from __future__ import annotations
 
 import argparse
+import os
 import shutil
 import statistics
 import sys
@@ -148,10 +151,13 @@ def main() -> None:
         print(f"library: {takes} takes, {frames} frames in total ({frames / takes:.0f} per take)")
         results, table = {}, []
         for operation in args.operations.split(","):
+            load = os.getloadavg()[0]
             seq = sequential(library, work / f"seq-{operation}", operation)
-            runs = {"sequential": {"wall_s": seq, "takes": takes, "frames": frames}}
+            runs = {"sequential": {"wall_s": seq, "takes": takes, "frames": frames, "load_before": load}}
             for workers in (1, 2):
-                runs[f"dask-{workers}"] = batch_run(library, work / f"dask{workers}-{operation}", operation, workers)
+                load = os.getloadavg()[0]
+                runs[f"dask-{workers}"] = {**batch_run(library, work / f"dask{workers}-{operation}", operation,
+                                                       workers), "load_before": load}
             results[operation] = runs
             for name, r in runs.items():
                 table.append([operation, name, f"{r['wall_s']:.1f}", f"{r['takes'] / r['wall_s']:.1f}",
@@ -159,10 +165,11 @@ def main() -> None:
                               f"{r.get('startup_s', 0):.1f}", _fmt(r.get("idle_per_take_ms")),
                               _fmt(r.get("noop_task_ms")),
                               f"{_fmt(r.get('rss_first_mib'), 0)} → {_fmt(r.get('rss_last_mib'), 0)}"
-                              f" (max {_fmt(r.get('rss_max_mib'), 0)})" if "rss_first_mib" in r else "-"])
+                              f" (max {_fmt(r.get('rss_max_mib'), 0)})" if "rss_first_mib" in r else "-",
+                              f"{r['load_before']:.1f}"])
         print_table(f"usdmotion batch on {machine()['cpus']} cores ({takes} takes, {frames} frames)",
                     ["operation", "engine", "wall s", "takes/s", "frames/s", "vs loop", "start-up+imports s",
-                     "idle ms/take", "no-op ms/task", "worker RSS MiB first→last"], table)
+                     "idle ms/take", "no-op ms/task", "worker RSS MiB first→last", "load avg"], table)
         per_take = {op: results[op]["sequential"]["wall_s"] / takes for op in results}
         print("on paper: per-take cost " + ", ".join(f"{op} {1000 * s:.0f} ms" for op, s in per_take.items()))
         for op, s in per_take.items():

@@ -25,7 +25,8 @@ def default_workers() -> int:
 def dask_client(workers: int | None = None, scheduler: str | None = None,
                 memory_limit: str | int = "auto") -> Iterator:
     """A ``distributed.Client``: on ``scheduler`` (``tcp://HOST:PORT``) if given, else on a
-    ``LocalCluster`` of ``workers`` single-threaded processes (default: one per core),
+    ``LocalCluster`` of ``workers`` single-threaded processes (default: one per core; inside a
+    take usdmotion, NumPy and Arrow use one thread),
     each limited to ``memory_limit`` (``"auto"``: the machine's memory shared equally).
 
     The cluster and client are always closed on exit.
@@ -56,6 +57,7 @@ def _client(workers: int | None, scheduler: str | None, memory_limit: str | int)
         raise ValueError(f"--workers must be at least 1, got {workers}")
     with LocalCluster(n_workers=workers or default_workers(), threads_per_worker=1, processes=True,
                       memory_limit=memory_limit, dashboard_address=None, worker_dashboard_address=None,
+                      env={"USDMOTION_THREADS": "1"},  # one take per core: no threads inside a take
                       silence_logs=logging.CRITICAL) as cluster, Client(cluster) as client:
         yield client
 
