@@ -17,7 +17,7 @@ COLUMNS = {
     "rig_family": "string", "joints": "int32", "end_sites": "int32", "frames": "int32", "fps": "float64",
     "duration_s": "float64", "meters_per_unit": "float64", "units": "string", "up_axis": "string",
     "outputs": "list<string>", "status": "string", "error": "string", "warnings": "string",
-    "seconds": "float64", "worker": "string", "options": "string",
+    "seconds": "float64", "cpu_seconds": "float64", "worker": "string", "options": "string",
 }
 ANALYZE_COLUMNS = {
     "peak_joint_speed": "float64", "peak_joint_speed_joint": "string", "peak_joint_speed_time_s": "float64",

@@ -22,7 +22,7 @@ def run_job(job: Job) -> dict:
     """Process one take; return its catalogue row (never raises for bad input)."""
     from usdmotion.errors import UsdMotionError
 
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     row = {"operation": job.operation, "take": job.take, "source": job.source, "relpath": job.relpath,
            "options": job.options_key, "outputs": [], "status": "ok", "error": None, "worker": _worker_name()}
     with warnings.catch_warnings(record=True) as caught:
@@ -41,6 +41,7 @@ def run_job(job: Job) -> dict:
             _remove_empty(created if "created" in locals() else [])
     row["warnings"] = "\n".join(dict.fromkeys(str(w.message).splitlines()[0] for w in caught)) or None
     row["seconds"] = time.perf_counter() - start
+    row["cpu_seconds"] = time.process_time() - cpu  # the worker process's CPU time during the take
     return row
 
 
