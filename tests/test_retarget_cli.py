@@ -195,7 +195,7 @@ def test_output_must_not_overwrite_the_input(capsys, walk16):
 
 
 def test_cyclic_rig_is_rejected_by_the_library():
-    from usdmotion.ops.hierarchy import RetargetError, Rig
+    from usdmotion.ops.retarget.hierarchy import RetargetError, Rig
 
     with pytest.raises(RetargetError, match="cycle"):
         Rig(("a", "b", "c"), np.array([-1, 2, 1]), np.zeros((3, 3)), np.zeros(3, bool), None, path="t.bvh")

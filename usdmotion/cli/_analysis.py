@@ -53,17 +53,9 @@ def read_any(path: Path, units: str | None, up_axis: UpAxisChoice | None,
     if not path.exists() and str(path) in EXAMPLES:
         path = example_path(str(path))
     if path.suffix.lower() in SPEC_SUFFIXES:
-        import dataclasses
+        from usdmotion.channels import override_units_axis
 
-        from usdmotion.io.bvh import resolve_units
-
-        motion = load_synthesis(path)
-        changes = {}
-        if units is not None:
-            changes["meters_per_unit"] = resolve_units(units)
-        if up_axis is not None:
-            changes["up_axis"] = up_axis.value
-        return dataclasses.replace(motion, **changes) if changes else motion
+        return override_units_axis(load_synthesis(path), units, None if up_axis is None else up_axis.value)
     return read_input(path, units, up_axis, root_offset, lenient)
 
 
@@ -84,7 +76,7 @@ def first_frame_jumps(motion, factor: float = 10.0) -> bool:
     are meaningless spikes.
     """
     from usdmotion.kinematics import joint_positions
-    from usdmotion.ops.analyse import slice_frames
+    from usdmotion.ops.analyse.measures import slice_frames
 
     if motion.n_frames < 4:
         return False
@@ -99,7 +91,7 @@ def prepare(path: Path, units, up_axis, root_offset, lenient, frames: str | None
     import warnings
 
     from usdmotion.errors import UsdMotionWarning
-    from usdmotion.ops.analyse import slice_frames
+    from usdmotion.ops.analyse.measures import slice_frames
 
     motion = read_any(path, units, up_axis, root_offset, lenient)
     start, stop = frame_slice(frames, motion.n_frames)

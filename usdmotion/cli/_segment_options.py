@@ -37,8 +37,8 @@ def run_segmentation(motion, source: Path, method: MethodChoice, param: float, c
                      min_length: float, role: list[str] | None, preset: str | None, refine: bool = True):
     """Find roles and cut ``motion`` (errors name ``source``)."""
     from usdmotion.cli._progress import progress
-    from usdmotion.ops.roles import parse_role_overrides
-    from usdmotion.ops.segment import segment
+    from usdmotion.ops.segment.roles import parse_role_overrides
+    from usdmotion.ops.segment.detect import segment
 
     with progress(f"segmenting {source.name}"):
         return segment(motion, method=method.value, param=param, cutoff_hz=cutoff, penalty=penalty,

@@ -43,13 +43,13 @@ def analyze(
 ) -> None:
     """Kinematics per joint and frame, centre of mass, summary statistics, tables and plots."""
     from usdmotion.cli._analysis_report import print_summary
-    from usdmotion.ops.analyse import analyse, select_joints
-    from usdmotion.ops.analyse_report import summary as summarise
-    from usdmotion.ops.analyse_report import write_kinematics, write_summary
-    from usdmotion.ops.smoothing import FilterSpec
+    from usdmotion.ops.analyse.measures import analyse, select_joints
+    from usdmotion.ops.analyse.report import summary as summarise
+    from usdmotion.ops.analyse.report import write_kinematics, write_summary
+    from usdmotion.ops.analyse.smoothing import FilterSpec
 
     from usdmotion.kinplot import image_path
-    from usdmotion.ops.analyse_report import table_path
+    from usdmotion.ops.analyse.report import table_path
 
     for path, check in ((out, table_path), (plot, image_path)):  # fail before the work, not after
         if path is not None:

@@ -28,7 +28,7 @@ def check(
     """Check joint ranges of motion and speeds against limits; exit code 1 if any is violated."""
     from usdmotion.check import check_motion, load_limits
     from usdmotion.cli._analysis_report import print_violations
-    from usdmotion.ops.smoothing import FilterSpec
+    from usdmotion.ops.analyse.smoothing import FilterSpec
 
     rules = load_limits(limits)
     motion, first = prepare(source, units, up_axis, root_offset, lenient, frames)

@@ -81,8 +81,8 @@ def retarget(
     """Retarget a motion onto a target skeleton, or onto its own with joints removed/added."""
     from usdmotion.cli._options import read_input
     from usdmotion.cli._progress import progress
-    from usdmotion.ops.retarget_io import retarget_files
-    from usdmotion.ops.retarget_solve import enable_compilation_cache
+    from usdmotion.ops.retarget.files import retarget_files
+    from usdmotion.ops.retarget.solve import enable_compilation_cache
 
     enable_compilation_cache()
     motion = read_input(source, units, up_axis, root_offset, lenient)

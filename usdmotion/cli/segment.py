@@ -46,8 +46,8 @@ def segment(
     as_json: Json = False,
 ) -> None:
     """Segment a motion into primitive actions; export the segments, a plot and clips."""
-    from usdmotion.ops.segment_io import export_clips as write_clips
-    from usdmotion.ops.segment_io import plot_segmentation, write_segments_json
+    from usdmotion.ops.segment.files import export_clips as write_clips
+    from usdmotion.ops.segment.files import plot_segmentation, write_segments_json
 
     motion = read_input(source, units, up_axis, root_offset, lenient)
     seg = run_segmentation(motion, source, method, param, cutoff, penalty, min_length, role, preset, refine)

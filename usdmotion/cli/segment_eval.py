@@ -37,7 +37,7 @@ def segment_eval(
 ) -> None:
     """Score both detectors (kcpd and the paper's heuristic) against labelled cuts."""
     from usdmotion.cli._segment_options import MethodChoice, run_segmentation
-    from usdmotion.ops.segment_eval import load_labels, score_cuts
+    from usdmotion.ops.segment.evaluate import load_labels, score_cuts
 
     truth = load_labels(labels, trial, 0 if labels.suffix.lower() == ".json" and _is_ours(labels) else first_frame)
     motion = read_input(source, units, up_axis, root_offset, lenient)

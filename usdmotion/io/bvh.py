@@ -28,7 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
-from usdmotion.constants import MAX_FRAMES, METERS_PER_UNIT
+from usdmotion.constants import MAX_FRAMES
+from usdmotion.channels import DEFAULT_JOINT_CHANNELS, DEFAULT_ROOT_CHANNELS, default_channels, resolve_units, rotation_order
 from usdmotion.errors import BvhParseError, UsdMotionWarning
 from usdmotion.io.atomic import atomic_output
 from usdmotion.io.bvh_header import BvhHeader, frame_rate, header_arrays, parse_header
@@ -36,10 +37,6 @@ from usdmotion.io.bvh_rows import line_of_row, parse_rows
 from usdmotion.motion import POSITION_CHANNELS, ROTATION_CHANNELS, Motion, RootOffset
 from usdmotion.parallel import over_slices
 from usdmotion.rotations import half_angles_to_quat, quat_to_euler
-
-DEFAULT_ROOT_CHANNELS = ("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation")
-DEFAULT_JOINT_CHANNELS = ("Zrotation", "Xrotation", "Yrotation")
-
 
 @dataclass(frozen=True)
 class BvhData:
@@ -207,13 +204,6 @@ def _channel_columns(channels: tuple[tuple[str, ...], ...]) -> list[dict[str, in
     return columns
 
 
-def rotation_order(names: tuple[str, ...]) -> str:
-    """Euler order of a joint's channel list: rotation channels in listed order, then
-    the missing axes (whose angles are zero), e.g. ``("Zrotation",)`` → ``"ZXY"``."""
-    present = "".join(n[0] for n in names if n in ROTATION_CHANNELS)
-    return present + "".join(a for a in "XYZ" if a not in present)
-
-
 def _euler_columns(columns: dict[str, int], order: str, missing: int) -> np.ndarray:
     """Column index of each axis of ``order`` (``missing`` for axes without a channel)."""
     return np.array([columns.get(f"{axis}rotation", missing) for axis in order])
@@ -361,24 +351,6 @@ def motion_from_bvh(data: BvhData, root_offset: str = "auto", meters_per_unit: f
     return motion
 
 
-def resolve_units(units: str | float) -> float:
-    """Metres per unit from a name (``cm``, ``m``, ``mm``, ``in``, ``ft``, ``asf``) or a number."""
-    if isinstance(units, (int, float)):
-        value = float(units)
-    else:
-        key = str(units).strip().lower()
-        if key in METERS_PER_UNIT:
-            return METERS_PER_UNIT[key]
-        try:
-            value = float(key)
-        except ValueError:
-            raise ValueError(f"unknown units {units!r}: use one of {', '.join(METERS_PER_UNIT)} "
-                             "or metres per unit as a number") from None
-    if not (np.isfinite(value) and value > 0):
-        raise ValueError(f"units must be a positive number of metres per unit, got {units!r}")
-    return value
-
-
 def read_bvh(path: str | os.PathLike, root_offset: str = "auto", units: str | float = "cm",
              up_axis: str = "Y", lenient: bool = False, ignore_joint_positions: bool = False) -> Motion:
     """Read a BVH file into a :class:`Motion` (see :func:`parse_bvh`, :func:`motion_from_bvh`)."""
@@ -393,27 +365,6 @@ def read_bvh(path: str | os.PathLike, root_offset: str = "auto", units: str | fl
 
 
 # --------------------------------------------------------------------------- writing
-
-
-def default_channels(motion: Motion) -> tuple[tuple[str, ...], ...]:
-    """A BVH channel layout for a motion read from elsewhere (USD, synthesis).
-
-    Root: 3 positions + ZXY rotations; joints with per-frame translations: the same;
-    other joints: ZXY rotations; end sites: none.
-    """
-    moving = np.zeros(motion.n_joints, bool)
-    if motion.joint_translations is not None:
-        deviation = np.abs(motion.joint_translations - motion.offsets[None]).max(axis=(0, 2))
-        moving = deviation > 1e-9
-    layout = []
-    for j in range(motion.n_joints):
-        if j == 0 or moving[j]:
-            layout.append(DEFAULT_ROOT_CHANNELS)
-        elif motion.end_sites[j]:
-            layout.append(())
-        else:
-            layout.append(DEFAULT_JOINT_CHANNELS)
-    return tuple(layout)
 
 
 def channel_values(motion: Motion, channels: tuple[tuple[str, ...], ...]) -> np.ndarray:
