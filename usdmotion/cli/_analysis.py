@@ -9,7 +9,7 @@ from typing import Annotated
 import numpy as np
 import typer
 
-from usdmotion.cli._options import RootOffsetChoice, UpAxisChoice, parse_start_stop
+from usdmotion.cli._options import ReadOptions, parse_start_stop
 
 SPEC_SUFFIXES = (".json", ".yaml", ".yml")
 
@@ -44,10 +44,8 @@ FileUnits = Annotated[bool, typer.Option(
     "--file-units", help="Report lengths in file units instead of metres.")]
 
 
-def read_any(path: Path, units: str | None, up_axis: UpAxisChoice | None,
-             root_offset: RootOffsetChoice = RootOffsetChoice.auto, lenient: bool = False):
+def read_any(path: Path, read: ReadOptions = ReadOptions()):
     """A motion from a motion file, a synthesis document, or a shipped example name."""
-    from usdmotion.cli._options import read_input
     from usdmotion.synthesis import EXAMPLES, example_path, load_synthesis
 
     if not path.exists() and str(path) in EXAMPLES:
@@ -55,8 +53,8 @@ def read_any(path: Path, units: str | None, up_axis: UpAxisChoice | None,
     if path.suffix.lower() in SPEC_SUFFIXES:
         from usdmotion.channels import override_units_axis
 
-        return override_units_axis(load_synthesis(path), units, None if up_axis is None else up_axis.value)
-    return read_input(path, units, up_axis, root_offset, lenient)
+        return override_units_axis(load_synthesis(path), read.units, read.up_axis)
+    return read.read(path)
 
 
 def frame_slice(spec: str | None, n_frames: int) -> tuple[int, int]:
@@ -86,14 +84,14 @@ def first_frame_jumps(motion, factor: float = 10.0) -> bool:
     return bool(steps[0] > factor * later) if later > 0 else bool(steps[0] > 0)
 
 
-def prepare(path: Path, units, up_axis, root_offset, lenient, frames: str | None):
+def prepare(path: Path, read: ReadOptions, frames: str | None):
     """``(motion sliced to --frames, first frame)``; warns about a leading rest-pose frame."""
     import warnings
 
     from usdmotion.errors import UsdMotionWarning
     from usdmotion.ops.analyse.measures import slice_frames
 
-    motion = read_any(path, units, up_axis, root_offset, lenient)
+    motion = read_any(path, read)
     start, stop = frame_slice(frames, motion.n_frames)
     if frames is None and first_frame_jumps(motion):
         warnings.warn(f"{path}: the motion jumps between frames 0 and 1 (a T-pose frame, as in cgspeed CMU files?); "

@@ -10,7 +10,7 @@ import typer
 
 from usdmotion.cli._analysis import (Cutoff, EulerOrder, FileUnits, Filter, FilterChoice, Frames, MotionInput,
                                      SexChoice, body_for, prepare)
-from usdmotion.cli._options import Json, Lenient, RootOffset, RootOffsetChoice, UpAxis, Units
+from usdmotion.cli._options import Json, ReadOptions, reads_motion
 from usdmotion.cli.app import app
 
 
@@ -20,6 +20,7 @@ def _opt(name: str, text: str):
 
 
 @app.command()
+@reads_motion
 def analyze(
     source: MotionInput,
     joints: Annotated[str | None, typer.Option(help="Comma-separated joints to report (default: all).",
@@ -38,8 +39,8 @@ def analyze(
     segments: _opt("--segments", "Segment map (JSON/YAML): landmark overrides or a custom segment table.") = None,
     com: Annotated[bool, typer.Option(help="Compute the centre of mass.")] = True,
     file_units: FileUnits = False,
-    units: Units = None, up_axis: UpAxis = None, root_offset: RootOffset = RootOffsetChoice.auto,
-    lenient: Lenient = False, as_json: Json = False,
+    as_json: Json = False,
+    read: ReadOptions = ReadOptions(),
 ) -> None:
     """Kinematics per joint and frame, centre of mass, summary statistics, tables and plots."""
     from usdmotion.cli._analysis_report import print_summary
@@ -54,7 +55,7 @@ def analyze(
     for path, check in ((out, table_path), (plot, image_path)):  # fail before the work, not after
         if path is not None:
             check(path)
-    motion, first = prepare(source, units, up_axis, root_offset, lenient, frames)
+    motion, first = prepare(source, read, frames)
     body = body_for(motion, source, com, sex, segments)
     kin = analyse(motion, FilterSpec(filter.value, cutoff), euler_order, body, mass, not file_units, first, str(source))
     chosen = select_joints(kin, [j.strip() for j in joints.split(",")] if joints else None, str(source))
