@@ -11,7 +11,8 @@ import pytest
 
 from usdmotion.cli import main
 from usdmotion.io import read_motion
-from usdmotion.io.bvh import read_bvh, write_bvh
+from usdmotion.io.bvh import read_bvh
+from usdmotion.io.bvh_write import write_bvh
 from usdmotion.kinematics import joint_positions
 
 WALK = "cmu/cgspeed_12_01_walk.bvh"

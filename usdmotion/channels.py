@@ -25,6 +25,20 @@ def rotation_order(names: tuple[str, ...]) -> str:
     return present + "".join(a for a in "XYZ" if a not in present)
 
 
+def channel_columns(channels: tuple[tuple[str, ...], ...]) -> list[dict[str, int]]:
+    """Per joint, channel name → column index in the ``(F, C)`` value array."""
+    columns, k = [], 0
+    for names in channels:
+        columns.append({name: k + i for i, name in enumerate(names)})
+        k += len(names)
+    return columns
+
+
+def euler_columns(columns: dict[str, int], order: str, missing: int) -> np.ndarray:
+    """Column index of each axis of ``order`` (``missing`` for axes without a channel)."""
+    return np.array([columns.get(f"{axis}rotation", missing) for axis in order])
+
+
 def default_channels(motion: Motion) -> tuple[tuple[str, ...], ...]:
     """A BVH channel layout for a motion read from elsewhere (USD, synthesis).
 

@@ -60,7 +60,7 @@ def write_motion(motion: Motion, path: str | os.PathLike, **options) -> Path:
     path = Path(path)
     kind = _kind(path)
     if kind == "bvh":
-        from usdmotion.io.bvh import write_bvh
+        from usdmotion.io.bvh_write import write_bvh
 
         return write_bvh(motion, path, **{k: v for k, v in options.items() if k in ("decimals",)})
     if kind == "usd":
