@@ -119,3 +119,9 @@ def test_ops_use_io_only_through_read_write_motion(graph):
             if m.startswith("usdmotion.io") and m not in OPS_IO_MODULES:
                 leaks.append(f"{name}:{line} imports {m} {names}")
     assert leaks == []
+
+
+def test_no_module_over_500_lines():
+    long = {str(path.relative_to(PACKAGE.parent)): n for path in PACKAGE.rglob("*.py")
+            if (n := len(path.read_text(encoding="utf-8").splitlines())) > 500}
+    assert long == {}
