@@ -6,7 +6,6 @@ from enum import Enum
 from pathlib import Path
 from typing import Annotated
 
-import numpy as np
 import typer
 
 from usdmotion.cli._options import ReadOptions, parse_start_stop
@@ -73,6 +72,8 @@ def first_frame_jumps(motion, factor: float = 10.0) -> bool:
     cgspeed's CMU conversions start with a synthetic T-pose frame; derivatives across it
     are meaningless spikes.
     """
+    import numpy as np  # deferred: loading the CLI (every command, --version) must not import NumPy
+
     from usdmotion.kinematics import joint_positions
     from usdmotion.ops.analyse.measures import slice_frames
 

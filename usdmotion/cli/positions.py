@@ -3,17 +3,21 @@
 from __future__ import annotations
 
 import json
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
-import numpy as np
 import typer
 
 from usdmotion.cli._options import InputPath, Json, ReadOptions, reads_motion
 from usdmotion.cli.app import app
 
+if TYPE_CHECKING:
+    import numpy as np
+
 
 def parse_frames(spec: str, n_frames: int) -> np.ndarray:
     """Frame indices from ``"all"``, ``"0,10,20"``, ``"100:200"`` or ``"0:100:10"`` (end exclusive)."""
+    import numpy as np  # deferred: loading the CLI (every command, --version) must not import NumPy
+
     spec = spec.strip().lower()
     if spec == "all":
         return np.arange(n_frames)
@@ -44,6 +48,8 @@ def positions(
     read: ReadOptions = ReadOptions(),
 ) -> None:
     """Print world joint positions (file units; stage units for USD) at chosen frames."""
+    import numpy as np  # deferred, see parse_frames
+
     from usdmotion.kinematics import joint_positions
 
     motion = read.read(source)

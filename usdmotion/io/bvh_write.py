@@ -130,7 +130,10 @@ def _rows_text(values: np.ndarray) -> str:
     import pyarrow as pa
     import pyarrow.csv as pcsv
 
-    table = pa.table({f"c{k}": values[:, k] for k in range(values.shape[1])})
+    # Arrays built from the columns' buffers: pa.table(numpy columns) would import pandas.
+    columns = [np.ascontiguousarray(values[:, k], dtype=np.float64) for k in range(values.shape[1])]
+    table = pa.Table.from_arrays([pa.Array.from_buffers(pa.float64(), len(c), [None, pa.py_buffer(c)]) for c in columns],
+                                 names=[f"c{k}" for k in range(len(columns))])
     sink = pa.BufferOutputStream()
     pcsv.write_csv(table, sink, write_options=pcsv.WriteOptions(include_header=False, delimiter=" ",
                                                                  quoting_style="none"))
