@@ -63,7 +63,7 @@ def sequential(library: Path, out: Path, operation: str) -> float:
     from usdmotion.io import read_motion
     from usdmotion.io.convert import convert_motion
     from usdmotion.ops.analyse import analyse
-    from usdmotion.ops.analyse_report import summary, write_kinematics, write_summary
+    from usdmotion.ops.analyse.report import summary, write_kinematics, write_summary
 
     files = sorted(library.rglob("*.bvh"))
     start, cpu = time.perf_counter(), time.process_time()

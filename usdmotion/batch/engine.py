@@ -65,10 +65,10 @@ def _client(workers: int | None, scheduler: str | None, memory_limit: str | int)
 #: Modules each operation's tasks import (loaded once per worker by :func:`warm_up`).
 OPERATION_MODULES = {
     "convert": ("usdmotion.io.convert", "usdmotion.io.usd", "usdmotion.io.bvh", "usdmotion.skeleton_names"),
-    "analyze": ("usdmotion.io", "usdmotion.ops.analyse", "usdmotion.ops.analyse_report", "usdmotion.anthropometry",
+    "analyze": ("usdmotion.io", "usdmotion.ops.analyse", "usdmotion.ops.analyse.report", "usdmotion.anthropometry",
                 "pyarrow.parquet"),
-    "segment": ("usdmotion.io", "usdmotion.ops.segment", "usdmotion.ops.segment_io"),
-    "retarget": ("usdmotion.io", "usdmotion.ops.retarget_io", "usdmotion.ops.retarget_solve"),
+    "segment": ("usdmotion.io", "usdmotion.ops.segment", "usdmotion.ops.segment.files"),
+    "retarget": ("usdmotion.io", "usdmotion.ops.retarget.files", "usdmotion.ops.retarget.solve"),
     "render": ("usdmotion.io", "usdmotion.render"),
 }
 

@@ -14,8 +14,8 @@ OPERATIONS = ("convert", "analyze", "segment", "retarget", "render")
 MOTION_SUFFIXES = (".bvh", ".usd", ".usda", ".usdc", ".usdz")
 DEFAULT_INCLUDE = ("**/*.bvh", "**/*.usd", "**/*.usda", "**/*.usdc", "**/*.usdz")
 #: ``read_motion`` keyword arguments a job starts from (what the single-file commands default to).
-DEFAULT_READ_OPTIONS = {"root_offset": "auto", "units": None, "up_axis": None, "lenient": False,
-                        "ignore_joint_positions": False}
+DEFAULT_READ_OPTIONS = {"units": None, "up_axis": None, "root_offset": "auto", "lenient": False,
+                        "ignore_joint_positions": False, "skeleton": None}
 #: Per-operation parameters a job starts from.
 DEFAULT_PARAMS = {"convert": {"to": "usdc", "mesh": False}, "analyze": {}, "segment": {"export_clips": False},
                   "retarget": {"to": "usdc"}, "render": {"size": [640, 360]}}

@@ -133,8 +133,8 @@ def analyze_task(job: Job, row: dict) -> dict:
     from usdmotion.anthropometry import body_model
     from usdmotion.errors import InputError
     from usdmotion.ops.analyse import analyse
-    from usdmotion.ops.analyse_report import summary, write_kinematics, write_summary
-    from usdmotion.ops.smoothing import FilterSpec
+    from usdmotion.ops.analyse.report import summary, write_kinematics, write_summary
+    from usdmotion.ops.analyse.smoothing import FilterSpec
 
     motion = _read(job)
     try:
@@ -168,7 +168,7 @@ def analyze_columns(data: dict) -> dict:
 def segment_task(job: Job, row: dict) -> dict:
     """``usdmotion segment SRC --out J [--export-clips DIR]`` with the default detector."""
     from usdmotion.ops.segment import segment
-    from usdmotion.ops.segment_io import export_clips, write_segments_json
+    from usdmotion.ops.segment.files import export_clips, write_segments_json
 
     motion = _read(job)
     seg = segment(motion, source=job.source)
@@ -182,8 +182,8 @@ def retarget_task(job: Job, row: dict) -> dict:
     """``usdmotion retarget SRC OUT --target RIG --report R`` (defaults); JAX keeps its compile
     cache in the worker process and on disk across takes."""
     from usdmotion.io import read_motion
-    from usdmotion.ops.retarget_io import retarget_files
-    from usdmotion.ops.retarget_solve import enable_compilation_cache
+    from usdmotion.ops.retarget.files import retarget_files
+    from usdmotion.ops.retarget.solve import enable_compilation_cache
 
     enable_compilation_cache()
     motion = _read(job)

@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from usdmotion.cli._options import IgnoreJointPositions, Lenient, RootOffset, RootOffsetChoice, UpAxis, Units
+from usdmotion.cli._options import ReadOptions, reads_motion
 from usdmotion.cli.app import app
 
 batch_app = typer.Typer(name="batch", no_args_is_help=True, help="Process a whole motion library (resumable, "
@@ -35,10 +35,11 @@ class ConvertTo(str, Enum):
     bvh = "bvh"
 
 
-def _read_options(units, up_axis, root_offset, lenient, ignore_joint_positions=False) -> dict:
+def _read_options(read: ReadOptions) -> dict:
     """``read_motion`` keyword arguments from the shared reading options."""
-    return {"root_offset": root_offset.value, "units": units, "up_axis": None if up_axis is None else up_axis.value,
-            "lenient": lenient, "ignore_joint_positions": ignore_joint_positions}
+    import dataclasses
+
+    return dataclasses.asdict(read)
 
 
 def _run(operation: str, src_dir: Path, out_dir: Path, read_options: dict, params: dict, include, force: bool,
@@ -61,64 +62,63 @@ def _run(operation: str, src_dir: Path, out_dir: Path, read_options: dict, param
 
 
 @batch_app.command("convert")
+@reads_motion
 def convert(src_dir: SrcDir, out_dir: OutDir,
             to: Annotated[ConvertTo, typer.Option("--to", help="Output format.")] = ConvertTo.usdc,
             mesh: Annotated[bool, typer.Option("--mesh", help="Add a skinned body Mesh (USD outputs).")] = False,
             include: Include = None, workers: Workers = None, scheduler: Scheduler = None, force: Force = False,
-            units: Units = None, up_axis: UpAxis = None, root_offset: RootOffset = RootOffsetChoice.auto,
-            lenient: Lenient = False, ignore_joint_positions: IgnoreJointPositions = False) -> None:
+            read: ReadOptions = ReadOptions()) -> None:
     """Convert every take (like ``usdmotion convert``)."""
     if mesh and to == ConvertTo.bvh:
         raise ValueError("--mesh needs a USD output (--to usdc, usdz or usda)")
-    _run("convert", src_dir, out_dir, _read_options(units, up_axis, root_offset, lenient, ignore_joint_positions),
+    _run("convert", src_dir, out_dir, _read_options(read),
          {"to": to.value, "mesh": mesh}, include, force, workers, scheduler)
 
 
 @batch_app.command("analyze")
+@reads_motion
 def analyze(src_dir: SrcDir, out_dir: OutDir, include: Include = None, workers: Workers = None,
-            scheduler: Scheduler = None, force: Force = False, units: Units = None, up_axis: UpAxis = None,
-            root_offset: RootOffset = RootOffsetChoice.auto, lenient: Lenient = False) -> None:
+            scheduler: Scheduler = None, force: Force = False, read: ReadOptions = ReadOptions()) -> None:
     """Kinematics of every take (like ``usdmotion analyze --summary --out .parquet``): summaries,
     catalogue columns and the per-frame tables in OUT_DIR/frames/ (partitioned by take)."""
-    _run("analyze", src_dir, out_dir, _read_options(units, up_axis, root_offset, lenient), {}, include, force,
-         workers, scheduler)
+    _run("analyze", src_dir, out_dir, _read_options(read), {}, include, force, workers, scheduler)
 
 
 @batch_app.command("segment")
+@reads_motion
 def segment(src_dir: SrcDir, out_dir: OutDir,
             export_clips: Annotated[bool, typer.Option("--export-clips", help="Also write one BVH per segment.")]
             = False, include: Include = None, workers: Workers = None, scheduler: Scheduler = None,
-            force: Force = False, units: Units = None, up_axis: UpAxis = None,
-            root_offset: RootOffset = RootOffsetChoice.auto, lenient: Lenient = False) -> None:
+            force: Force = False, read: ReadOptions = ReadOptions()) -> None:
     """Segment every take into actions (like ``usdmotion segment --out``)."""
-    _run("segment", src_dir, out_dir, _read_options(units, up_axis, root_offset, lenient),
+    _run("segment", src_dir, out_dir, _read_options(read),
          {"export_clips": export_clips}, include, force, workers, scheduler)
 
 
 @batch_app.command("retarget")
+@reads_motion
 def retarget(src_dir: SrcDir, out_dir: OutDir,
              target: Annotated[Path, typer.Option(help="Target skeleton (BVH or UsdSkel).", show_default=False)],
              to: Annotated[ConvertTo, typer.Option("--to", help="Output format.")] = ConvertTo.usdc,
              include: Include = None, workers: Workers = None, scheduler: Scheduler = None, force: Force = False,
-             units: Units = None, up_axis: UpAxis = None, root_offset: RootOffset = RootOffsetChoice.auto,
-             lenient: Lenient = False) -> None:
+             read: ReadOptions = ReadOptions()) -> None:
     """Retarget every take onto one rig (like ``usdmotion retarget --target --report``)."""
     from usdmotion.errors import InputError
 
     if not target.is_file():
         raise InputError(target, "target skeleton not found")
-    _run("retarget", src_dir, out_dir, _read_options(units, up_axis, root_offset, lenient),
+    _run("retarget", src_dir, out_dir, _read_options(read),
          {"to": to.value, "target": str(target.absolute())}, include, force, workers, scheduler)
 
 
 @batch_app.command("render")
+@reads_motion
 def render(src_dir: SrcDir, out_dir: OutDir,
            size: Annotated[str, typer.Option(help="Preview size WIDTHxHEIGHT.")] = "640x360",
            include: Include = None, workers: Workers = None, scheduler: Scheduler = None, force: Force = False,
-           units: Units = None, up_axis: UpAxis = None, root_offset: RootOffset = RootOffsetChoice.auto,
-           lenient: Lenient = False) -> None:
+           read: ReadOptions = ReadOptions()) -> None:
     """A preview MP4 of every take (like ``usdmotion render --size``)."""
     from usdmotion.cli.render import _size
 
-    _run("render", src_dir, out_dir, _read_options(units, up_axis, root_offset, lenient), {"size": list(_size(size))},
+    _run("render", src_dir, out_dir, _read_options(read), {"size": list(_size(size))},
          include, force, workers, scheduler)
