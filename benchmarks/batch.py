@@ -172,7 +172,8 @@ def main() -> None:
                               f" (max {_fmt(r.get('rss_max_mib'), 0)})" if "rss_first_mib" in r else "-",
                               f"{r['load_before']:.1f}"])
         print_table(f"usdmotion batch on {machine()['cpus']} cores ({takes} takes, {frames} frames)",
-                    ["operation", "engine", "wall s", "takes/s", "frames/s", "vs loop", "CPU ms/take", "start-up+imports s",
+                    ["operation", "engine", "wall s", "takes/s", "frames/s", "vs loop", "CPU ms/take",
+                     "start-up+imports s",
                      "idle ms/take", "no-op ms/task", "worker RSS MiB first→last", "load avg"], table)
         per_take = {op: results[op]["dask-1"]["cpu_ms_per_take"] / 1000 for op in results}
         print("on paper, from the CPU time per take on a worker: " +
@@ -181,7 +182,8 @@ def main() -> None:
         for op, s in per_take.items():
             bound = 1000 / max(results[op]["dask-2"]["noop_task_ms"] or 1, 0.2)  # no-op tasks/s through Dask here
             paper[op] = {"scheduler_tasks_per_s": bound,
-                         **{name: min(cores / s, bound) for name, cores in (("64_cores", 64), ("10_nodes_16_cores", 160))}}
+                         **{name: min(cores / s, bound)
+                            for name, cores in (("64_cores", 64), ("10_nodes_16_cores", 160))}}
             print(f"  {op}: 64 cores ≈ {64 / s:.0f} takes/s of work; 10 nodes x 16 cores ≈ {160 / s:.0f} takes/s; "
                   f"one scheduler fed from one client ran {bound:.0f} no-op tasks/s here, so ≈ "
                   f"{paper[op]['64_cores']:.0f} and {paper[op]['10_nodes_16_cores']:.0f} takes/s")

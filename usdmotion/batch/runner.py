@@ -51,8 +51,9 @@ def run_batch(operation: str, src_dir: str | Path, out_dir: str | Path, read_opt
     Takes whose catalogue row is ok (same options) and whose outputs are newer than the
     source are skipped unless ``force``. ``on_start(n)`` is told how many takes will run,
     ``on_row(row)`` gets each finished row. ``client``: an open ``distributed.Client`` to
-    use instead of starting a cluster (``workers``/``scheduler`` are then ignored). The catalogue is saved every
-    :data:`SAVE_EVERY_S` seconds, at the end, and on Ctrl-C (atomically each time).
+    use instead of starting a cluster (``workers``/``scheduler`` are then ignored). The
+    catalogue is saved every :data:`SAVE_EVERY_S` seconds, at the end, and on Ctrl-C
+    (atomically each time).
     """
     from usdmotion.batch.engine import dask_client, run_jobs, warm_up
 

@@ -110,7 +110,8 @@ def motion_facts(motion) -> dict:
     from usdmotion.summary import unit_name
 
     real = [n for n, end in zip(motion.joint_names, motion.end_sites) if not end]
-    return {"rig_family": detect_profile(real), "joints": len(real), "end_sites": int(np.count_nonzero(motion.end_sites)),
+    return {"rig_family": detect_profile(real), "joints": len(real),
+            "end_sites": int(np.count_nonzero(motion.end_sites)),
             "frames": motion.n_frames, "fps": float(motion.fps), "duration_s": float(motion.duration),
             "meters_per_unit": float(motion.meters_per_unit), "units": unit_name(motion.meters_per_unit),
             "up_axis": motion.up_axis}
