@@ -199,9 +199,11 @@ def _node_trs(path: Path, node) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def _pick_skin(path: Path, gltf, skin: int | None) -> int:
     skins = gltf.skins or []
     if not skins:
-        what = "morph targets only" if any(m.primitives and any(p.targets for p in m.primitives)
-                                           for m in gltf.meshes or []) else "no skeleton"
-        raise InputError(path, f"no skin in this glTF ({what}): usdmotion reads skeletal animation "
+        paths = {c.target.path for a in gltf.animations or [] for c in a.channels or [] if c.target is not None}
+        if paths == {"weights"}:
+            raise InputError(path, "no skin, and the animation drives morph-target weights only; usdmotion reads "
+                                   "skeletal animation (a skin with joints and an animation of them)")
+        raise InputError(path, "no skin in this glTF: usdmotion reads skeletal animation "
                                "(a skin with joints and an animation of them)")
     if skin is not None:
         if not 0 <= skin < len(skins):
