@@ -36,7 +36,8 @@ from usdmotion.skin import build_body, skin_frames
 pytestmark = pytest.mark.blender
 
 PROBE = REPO / "tests" / "blender" / "gltf_probe.py"
-POSITION_TOL = 1e-4  # × height (metres)
+POSITION_TOL = 1e-4  # × height (metres), Blender's import of our GLBs (measured ≤ 5e-7)
+ROUND_TRIP_TOL = 1e-5  # × height, Blender's own export read back by us (measured 3.5e-7)
 
 #: (id, shared file, units, up axis, first N frames, with the body mesh)
 CASES = (
@@ -150,4 +151,4 @@ def test_blender_exported_glb_reads_back_to_blenders_positions(probed):
     for frame in result["frames"]:  # Blender frame f = our frame f - frame_start
         heads = np.array(armature["poses"][str(frame)]["world_heads"])
         ours = positions[frame - result["scene"]["frame_start"], order]
-        assert np.abs(heads - ours).max() / height <= POSITION_TOL, frame
+        assert np.abs(heads - ours).max() / height <= ROUND_TRIP_TOL, frame

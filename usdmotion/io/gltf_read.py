@@ -321,10 +321,15 @@ def _frame_times(keys: list[np.ndarray], fps: float | None) -> tuple[np.ndarray,
     start = min(float(k[0]) for k in keys)
     end = max(float(k[-1]) for k in keys)
     if fps is None:
-        steps = np.concatenate([np.diff(k) for k in keys])
-        steps = steps[steps > 1e-7]
-        fps = 1.0 / float(np.median(steps)) if steps.size else 30.0
-        if abs(fps - round(fps)) < 1e-3 * fps:
+        longest = max(keys, key=len)
+        steps = np.diff(longest)
+        if steps.size and steps.min() > 0 and np.ptp(steps) < 1e-3 * steps.mean():
+            fps = (len(longest) - 1) / float(longest[-1] - longest[0])  # evenly sampled: the exact rate
+        else:
+            steps = np.concatenate([np.diff(k) for k in keys])
+            steps = steps[steps > 1e-7]
+            fps = 1.0 / float(np.median(steps)) if steps.size else 30.0
+        if abs(fps - round(fps)) < 1e-6 * fps:
             fps = float(round(fps))
     count = int(np.floor((end - start) * fps + 1e-3)) + 1
     return start + np.arange(count) / fps, fps
