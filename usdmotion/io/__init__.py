@@ -35,7 +35,9 @@ def read_motion(path: str | os.PathLike, root_offset: str = "auto", units: str |
     """Read a BVH, UsdSkel or glTF 2.0 (.glb/.gltf) file.
 
     For BVH, ``units`` (default ``"cm"``) and ``up_axis`` (default ``"Y"``) state what the
-    file does not; for USD they come from the stage and, if given, override it.
+    file does not; for USD and glTF they come from the file (glTF: metres, Y up, or the
+    source's where usdmotion wrote it) and, if given, override it. ``skin`` picks one of
+    several glTF skins.
     """
     import dataclasses
 
@@ -46,21 +48,23 @@ def read_motion(path: str | os.PathLike, root_offset: str = "auto", units: str |
 
         return read_bvh(path, root_offset=root_offset, units="cm" if units is None else units,
                         up_axis=up_axis or "Y", lenient=lenient, ignore_joint_positions=ignore_joint_positions)
-    if kind == "usd":
+    if kind in ("usd", "gltf"):
         from usdmotion.io.bvh import resolve_units
-        from usdmotion.io.usd import read_usd
 
-        motion = read_usd(path)
+        if kind == "usd":
+            from usdmotion.io.usd import read_usd
+
+            motion = read_usd(path)
+        else:
+            from usdmotion.io.gltf_read import read_gltf
+
+            motion = read_gltf(path, skin=skin)
         changes = {}
         if units is not None:
             changes["meters_per_unit"] = resolve_units(units)
         if up_axis is not None:
             changes["up_axis"] = up_axis
         return dataclasses.replace(motion, **changes) if changes else motion
-    if kind == "gltf":
-        from usdmotion.io.gltf_read import read_gltf
-
-        return read_gltf(path, skin=skin)
     raise InputError(path, f"unknown input format {path.suffix!r} (use {KNOWN})")
 
 
