@@ -342,3 +342,71 @@ def test_build_gltf_names_every_joint_node(shared_file):
     gltf = build_gltf(motion)
     assert [gltf.nodes[j].name for j in gltf.skins[0].joints] == list(motion.joint_names)
     assert any(":" in n for n in motion.joint_names)
+
+
+def _append(document: dict, binary: bytes, array: np.ndarray, kind: str) -> tuple[bytes, int]:
+    """Append float32 ``array`` to the binary chunk as a new bufferView + accessor; returns its index."""
+    data = np.ascontiguousarray(array, "<f4").tobytes()
+    binary += b"\0" * (-len(binary) % 4)
+    document["bufferViews"].append({"buffer": 0, "byteOffset": len(binary), "byteLength": len(data)})
+    accessor = {"bufferView": len(document["bufferViews"]) - 1, "componentType": 5126, "count": len(array),
+                "type": kind}
+    if kind == "SCALAR":
+        accessor.update(min=[float(array.min())], max=[float(array.max())])
+    document["accessors"].append(accessor)
+    binary += data
+    document["buffers"][0]["byteLength"] = len(binary)
+    return binary, len(document["accessors"]) - 1
+
+
+def test_reader_samples_step_cubic_and_sparse_keys(good, tmp_path):
+    """Foreign files key channels differently: STEP and CUBICSPLINE samplers, and channels
+    with fewer keys than the others (Blender drops constant keys) are sampled at the file's
+    frames: keys give their values, a 2-key LINEAR channel is interpolated in between."""
+    import pygltflib
+
+    document, binary = good
+    path = tmp_path / "base.glb"
+    path.write_bytes(_glb(document, binary))
+    base = read_motion(path)
+
+    step = json.loads(json.dumps(document))
+    for sampler in step["animations"][0]["samplers"]:
+        sampler["interpolation"] = "STEP"
+    (tmp_path / "step.glb").write_bytes(_glb(step, binary))
+    np.testing.assert_allclose(joint_positions(read_motion(tmp_path / "step.glb")), joint_positions(base), atol=1e-5)  # cm
+
+    cubic, blob = json.loads(json.dumps(document)), binary
+    gltf = pygltflib.GLTF2.load_from_bytes(_glb(document, binary))
+    for sampler in cubic["animations"][0]["samplers"]:
+        values = gltf_accessor(gltf, sampler["output"])
+        tangents = np.zeros_like(values)
+        blob, sampler["output"] = _append(cubic, blob, np.stack([tangents, values, tangents], 1).reshape(-1, values.shape[1]),
+                                          "VEC4" if values.shape[1] == 4 else "VEC3")
+        sampler["interpolation"] = "CUBICSPLINE"
+    (tmp_path / "cubic.glb").write_bytes(_glb(cubic, blob))
+    np.testing.assert_allclose(joint_positions(read_motion(tmp_path / "cubic.glb")), joint_positions(base), atol=1e-5)
+
+    sparse = json.loads(json.dumps(document))
+    channel = next(c for c in sparse["animations"][0]["channels"] if c["target"]["path"] == "translation")
+    sampler = sparse["animations"][0]["samplers"][channel["sampler"]]
+    times = gltf_accessor(gltf, sampler["input"])[:, 0]
+    values = gltf_accessor(gltf, sampler["output"])
+    blob, sampler["input"] = _append(sparse, binary, times[[0, -1]], "SCALAR")
+    blob, sampler["output"] = _append(sparse, blob, values[[0, -1]], "VEC3")
+    (tmp_path / "sparse.glb").write_bytes(_glb(sparse, blob))
+    motion = read_motion(tmp_path / "sparse.glb")
+    assert motion.n_frames == base.n_frames
+    u = (times - times[0]) / (times[-1] - times[0])
+    expected = (values[0] + u[:, None] * (values[-1] - values[0])) / base.meters_per_unit  # back to the source's cm
+    np.testing.assert_allclose(motion.root_translation, expected, rtol=1e-6, atol=1e-4)
+    np.testing.assert_allclose(motion.rotations, base.rotations, atol=1e-12)
+
+
+def gltf_accessor(gltf, index: int) -> np.ndarray:
+    """A float accessor ``(count, width)`` of a pygltflib document (tightly packed views only)."""
+    a = gltf.accessors[index]
+    view = gltf.bufferViews[a.bufferView]
+    width = {"SCALAR": 1, "VEC3": 3, "VEC4": 4}[a.type]
+    start = (view.byteOffset or 0) + (a.byteOffset or 0)
+    return np.frombuffer(gltf.binary_blob(), "<f4", a.count * width, start).reshape(a.count, width).astype(float)

@@ -292,8 +292,11 @@ def _pick_animation(path: Path, gltf, joint_nodes: set[int]) -> int:
 
 
 def _sample(times: np.ndarray, keys: np.ndarray, values: np.ndarray, interpolation: str,
-            rotation: bool) -> np.ndarray:
-    """One channel at ``times (F,)``: ``keys (K,)``, ``values (K, C)`` (``(3K, C)`` for CUBICSPLINE)."""
+            rotation: bool, tolerance: float) -> np.ndarray:
+    """One channel at ``times (F,)``: ``keys (K,)``, ``values (K, C)`` (``(3K, C)`` for CUBICSPLINE).
+
+    A key within ``tolerance`` seconds of a time counts as reached (float32 key times are
+    never exactly ``i / fps``; a STEP channel must not fall back to the previous key)."""
     if interpolation == "CUBICSPLINE":
         a, v, b = values[0::3], values[1::3], values[2::3]
     else:
@@ -301,11 +304,11 @@ def _sample(times: np.ndarray, keys: np.ndarray, values: np.ndarray, interpolati
     if len(keys) == 1:
         out = np.repeat(v[:1], len(times), axis=0)
         return quat_normalize(out) if rotation else out
-    i = np.clip(np.searchsorted(keys, times, side="right") - 1, 0, len(keys) - 2)
+    i = np.clip(np.searchsorted(keys, times + tolerance, side="right") - 1, 0, len(keys) - 2)
     dt = keys[i + 1] - keys[i]
     u = np.clip((times - keys[i]) / np.where(dt > 0, dt, 1.0), 0.0, 1.0)[:, None]
     if interpolation == "STEP":
-        out = np.where(u >= 1.0, v[i + 1], v[i])
+        out = np.where((times + tolerance >= keys[i + 1])[:, None], v[i + 1], v[i])
     elif interpolation == "CUBICSPLINE":
         u2, u3, d = u * u, u * u * u, dt[:, None]
         out = ((2 * u3 - 3 * u2 + 1) * v[i] + (u3 - 2 * u2 + u) * d * b[i]
@@ -387,7 +390,7 @@ def read_gltf(path: str | os.PathLike, skin: int | None = None) -> Motion:
     translations = np.broadcast_to(rest_t, (n_frames, n_joints, 3)).copy()
     animated_scale = False
     for j, what, keys, values, interpolation in channels:  # one vectorised sampling per channel
-        sampled = _sample(times, keys, values, interpolation, what == "rotation")
+        sampled = _sample(times, keys, values, interpolation, what == "rotation", 1e-3 / fps)
         if what == "rotation":
             rotations[:, j] = sampled
         elif what == "translation":
