@@ -410,3 +410,39 @@ def gltf_accessor(gltf, index: int) -> np.ndarray:
     width = {"SCALAR": 1, "VEC3": 3, "VEC4": 4}[a.type]
     start = (view.byteOffset or 0) + (a.byteOffset or 0)
     return np.frombuffer(gltf.binary_blob(), "<f4", a.count * width, start).reshape(a.count, width).astype(float)
+
+
+def test_nodes_above_the_skeleton_are_folded_into_the_root(good, tmp_path):
+    """Mixamo/FBX-converted files put the skeleton under an "Armature" node with a rotation
+    and a 0.01 scale (centimetre joints): world positions must include that transform."""
+    document, binary = good
+    path = tmp_path / "base.glb"
+    path.write_bytes(_glb(document, binary))
+    base = read_motion(path)
+    wrapped = json.loads(json.dumps(document))
+    del wrapped["skins"][0]["extras"]  # a foreign file: read in glTF's metres, Y up
+    (tmp_path / "plain.glb").write_bytes(_glb(wrapped, binary))
+    plain = read_motion(tmp_path / "plain.glb")
+    angle = 0.3
+    wrapped["nodes"].append({"name": "Armature", "children": [0], "scale": [0.01, 0.01, 0.01],
+                             "rotation": [0.0, float(np.sin(angle / 2)), 0.0, float(np.cos(angle / 2))],
+                             "translation": [1.0, 0.0, 2.0]})
+    wrapped["scenes"][0]["nodes"] = [len(wrapped["nodes"]) - 1]
+    # the joints' own numbers become centimetres
+    for node in wrapped["nodes"][:-1]:
+        if "translation" in node:
+            node["translation"] = [100 * v for v in node["translation"]]
+    grown = bytearray(binary)
+    for channel in wrapped["animations"][0]["channels"]:
+        if channel["target"]["path"] == "translation":
+            a = wrapped["accessors"][wrapped["animations"][0]["samplers"][channel["sampler"]]["output"]]
+            start = wrapped["bufferViews"][a["bufferView"]].get("byteOffset", 0) + a.get("byteOffset", 0)
+            values = np.frombuffer(binary, "<f4", a["count"] * 3, start) * 100
+            grown[start:start + values.nbytes] = values.astype("<f4").tobytes()
+    (tmp_path / "wrapped.glb").write_bytes(_glb(wrapped, bytes(grown)))
+    motion = read_motion(tmp_path / "wrapped.glb")
+    assert motion.meters_per_unit == 1.0 and plain.meters_per_unit == 1.0
+    turn = Rotation.from_rotvec([0.0, angle, 0.0]).as_matrix()
+    expected = joint_positions(plain) @ turn.T + [1.0, 0.0, 2.0]
+    np.testing.assert_allclose(joint_positions(motion), expected, atol=1e-6 * skeleton_height(plain))
+    assert np.abs(joint_positions(plain) - to_gltf_space(joint_positions(base), base)).max() < 1e-6
