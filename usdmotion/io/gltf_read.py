@@ -313,8 +313,14 @@ def _sample(times: np.ndarray, keys: np.ndarray, values: np.ndarray, interpolati
         u2, u3, d = u * u, u * u * u, dt[:, None]
         out = ((2 * u3 - 3 * u2 + 1) * v[i] + (u3 - 2 * u2 + u) * d * b[i]
                + (-2 * u3 + 3 * u2) * v[i + 1] + (u3 - u2) * d * a[i + 1])
-    elif rotation:
-        return quat_slerp(quat_normalize(v[i]), quat_normalize(v[i + 1]), u[:, 0])
+    elif rotation:  # slerp only between keys: frames on a key (every frame, in most files) take it
+        on_key = np.abs(times - keys[i]) <= tolerance
+        on_next = ~on_key & (np.abs(times - keys[i + 1]) <= tolerance)
+        out = np.where(on_next[:, None], v[i + 1], v[i])
+        between = ~(on_key | on_next)
+        if between.any():
+            out[between] = quat_slerp(quat_normalize(v[i][between]), quat_normalize(v[i + 1][between]),
+                                      u[between, 0])
     else:
         out = v[i] + u * (v[i + 1] - v[i])
     return quat_normalize(out) if rotation else out
