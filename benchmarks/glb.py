@@ -2,13 +2,15 @@
 
     .venv/bin/python benchmarks/glb.py [--repeat 5] [--source FILE --units asf]
 
-Rows (each timed ``--repeat`` times after a warm-up, median seconds; bytes of the file):
+Rows (GLB and USDC timed alternately ``--repeat`` times after a warm-up, median seconds;
+bytes of the file):
 
 * ``write``: the motion already read and the body already built, only the writer runs —
   ``write_gltf(.glb, body=...)`` vs ``write_usd(.usdc, decorate=body_decorator(body))``;
 * ``convert``: what ``usdmotion convert walk.bvh out.{glb,usdc} --mesh --no-validate``
   does in-process: read the BVH, build the body, write;
-* ``no mesh``: skeleton and animation only; ``--fps 30``: GLB resampled to 30 fps.
+* ``no mesh``: skeleton and animation only; ``read``: ``read_motion`` of those files
+  (after the "write, no mesh" row wrote them); ``--fps 30``: GLB resampled to 30 fps.
 
 Goal (issue 12): the GLB with ``--mesh`` no larger and no slower to write than the USDC;
 the table shows the GLB/USDC ratios.
@@ -25,6 +27,22 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import REPO, print_table, timed, write_results  # noqa: E402
 
 WALK = REPO / "usdmotion" / "data" / "cmu_12_01_walk.bvh"
+
+
+def interleaved(ours, peer, repeat: int) -> tuple[dict, dict]:
+    """Time ``ours`` and ``peer`` alternately (one warm-up each), so that load from other
+    processes on a shared machine falls on both alike."""
+    import statistics
+    import time
+
+    ours(), peer()
+    runs = ([], [])
+    for _ in range(repeat):
+        for fn, times in zip((ours, peer), runs):
+            start = time.perf_counter()
+            fn()
+            times.append(time.perf_counter() - start)
+    return tuple({"median_s": statistics.median(t), "min_s": min(t), "max_s": max(t), "runs": repeat} for t in runs)
 
 
 def main() -> None:
@@ -60,13 +78,12 @@ def main() -> None:
                              lambda: write_usd(motion, usdc, decorate=body_decorator(body))),
             "convert --mesh": (lambda: convert(glb), lambda: convert(usdc)),
             "write, no mesh": (lambda: write_gltf(motion, glb), lambda: write_usd(motion, usdc)),
+            "read (no mesh)": (lambda: read_motion(glb), lambda: read_motion(usdc)),
         }
         results, rows = {}, []
         for name, (ours, peer) in cases.items():
-            t_glb = timed(ours, args.repeat)
-            size_glb = glb.stat().st_size
-            t_usdc = timed(peer, args.repeat)
-            size_usdc = usdc.stat().st_size
+            t_glb, t_usdc = interleaved(ours, peer, args.repeat)
+            size_glb, size_usdc = glb.stat().st_size, usdc.stat().st_size
             results[name] = {"glb": {**t_glb, "bytes": size_glb}, "usdc": {**t_usdc, "bytes": size_usdc},
                              "size_ratio": size_glb / size_usdc, "time_ratio": t_glb["median_s"] / t_usdc["median_s"]}
             rows.append([name, f"{size_glb:,}", f"{size_usdc:,}", f"{size_glb / size_usdc:.3f}",
