@@ -446,3 +446,61 @@ def test_nodes_above_the_skeleton_are_folded_into_the_root(good, tmp_path):
     expected = joint_positions(plain) @ turn.T + [1.0, 0.0, 2.0]
     np.testing.assert_allclose(joint_positions(motion), expected, atol=1e-6 * skeleton_height(plain))
     assert np.abs(joint_positions(plain) - to_gltf_space(joint_positions(base), base)).max() < 1e-6
+
+
+def test_mutated_documents_never_crash(good, tmp_path):
+    """Random wrong values and deleted keys in the JSON (pygltflib checks no types), node
+    cycles and absurd key times: every read either succeeds or raises one UsdMotionError."""
+    import random
+
+    from usdmotion.errors import UsdMotionError
+
+    document, binary = good
+    cycle = json.loads(json.dumps(document))
+    cycle["nodes"][1].setdefault("children", []).append(0)
+    huge = json.loads(json.dumps(document))
+    times = huge["animations"][0]["samplers"][0]["input"]
+    grown = bytearray(binary)
+    a = huge["accessors"][times]
+    start = huge["bufferViews"][a["bufferView"]].get("byteOffset", 0) + a.get("byteOffset", 0)
+    grown[start + 4 * (a["count"] - 1):start + 4 * a["count"]] = struct.pack("<f", 1e9)
+    huge["accessors"][times]["max"] = [1e9]
+    cases = {"cycle": (cycle, binary, "cycle"), "huge": (huge, bytes(grown), "more than usdmotion reads")}
+    for name, (doc, blob, message) in cases.items():
+        (tmp_path / f"{name}.glb").write_bytes(_glb(doc, blob))
+        with pytest.raises(UsdMotionError, match=message):
+            read_motion(tmp_path / f"{name}.glb")
+
+    def leaves(node, trail=()):
+        items = node.items() if isinstance(node, dict) else enumerate(node) if isinstance(node, list) else ()
+        for key, value in items:
+            yield trail + (key,)
+            yield from leaves(value, trail + (key,))
+
+    paths = list(leaves(document))
+    rnd = random.Random(12)
+    values = [None, -1, 0, 1, 10 ** 9, 2.5, "x", [], {}, [1, 2], True]
+    outcomes = {"read": 0, "error": 0}
+    for trial in range(60):
+        doc = json.loads(json.dumps(document))
+        for _ in range(rnd.randint(1, 3)):
+            *parent_keys, last = rnd.choice(paths)
+            try:
+                parent = doc
+                for key in parent_keys:
+                    parent = parent[key]
+                if isinstance(parent, dict) and rnd.random() < 0.3:
+                    del parent[last]
+                else:
+                    parent[last] = rnd.choice(values)
+            except (KeyError, IndexError, TypeError):
+                pass  # an earlier mutation removed the path
+        path = tmp_path / "mutated.glb"
+        path.write_bytes(_glb(doc, binary))
+        try:
+            read_motion(path)
+            outcomes["read"] += 1
+        except UsdMotionError as exc:
+            assert str(exc).startswith(f"{path}: ") and "\n" not in str(exc)
+            outcomes["error"] += 1
+    assert outcomes["error"] > 10 and sum(outcomes.values()) == 60, outcomes

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from usdmotion.errors import InputError, UsdMotionWarning
+from usdmotion.errors import InputError, UsdMotionError, UsdMotionWarning
 from usdmotion.io.gltf import EXTRAS_KEY, up_rotation
 from usdmotion.motion import Motion
 from usdmotion.rotations import (matrix_to_quat, quat_conjugate, quat_mul, quat_normalize, quat_rotate, quat_slerp,
@@ -164,20 +164,29 @@ def _accessor(path: Path, gltf, buffers: list[bytes], index: int) -> np.ndarray:
 # ------------------------------------------------------------------------ skeleton
 
 
-def _parents(gltf) -> np.ndarray:
-    """Parent node of every node ``(N,)`` (-1: none)."""
+def _parents(path: Path, gltf) -> np.ndarray:
+    """Parent node of every node ``(N,)`` (-1: none); a node with two parents is an error."""
     parents = np.full(len(gltf.nodes or []), -1)
     for n, node in enumerate(gltf.nodes or []):
-        for c in node.children or []:
-            if 0 <= c < len(parents):
-                parents[c] = n
+        children = node.children or []
+        if not isinstance(children, list) or not all(type(c) is int for c in children):
+            raise InputError(path, f"node {n}: children must be a list of node indices")
+        for c in children:
+            if not 0 <= c < len(parents):
+                raise InputError(path, f"node {n} has a child {c} that does not exist")
+            if parents[c] >= 0 or c == n:
+                raise InputError(path, f"node {c} has two parents (or is its own child); glTF nodes form trees")
+            parents[c] = n
     return parents
 
 
-def _ancestors(node: int, parents: np.ndarray) -> list[int]:
+def _ancestors(path: Path, node: int, parents: np.ndarray) -> list[int]:
+    """``[node, parent, …, scene root]``; a cycle is an error."""
     chain = [node]
-    while parents[chain[-1]] >= 0 and len(chain) <= len(parents):
+    while parents[chain[-1]] >= 0:
         chain.append(int(parents[chain[-1]]))
+        if len(chain) > len(parents):
+            raise InputError(path, f"node {node}: its ancestors form a cycle")
     return chain
 
 
@@ -219,11 +228,12 @@ def _pick_skin(path: Path, gltf, skin: int | None) -> int:
 
 def _skeleton(path: Path, gltf, skin_index: int) -> tuple[list[int], np.ndarray]:
     """Joint nodes in parents-first order ``[node, ...]`` and their parent indices ``(J,)``."""
-    node_parents = _parents(gltf)
-    joints = [int(j) for j in gltf.skins[skin_index].joints or []]
-    if not joints or any(not 0 <= j < len(node_parents) for j in joints):
+    node_parents = _parents(path, gltf)
+    joints = gltf.skins[skin_index].joints or []
+    if not joints or not isinstance(joints, list) or any(type(j) is not int or not 0 <= j < len(node_parents)
+                                                         for j in joints):
         raise InputError(path, f"skin {skin_index} has no joints or names a node that does not exist")
-    chains = [_ancestors(j, node_parents)[::-1] for j in joints]  # scene root … joint
+    chains = [_ancestors(path, j, node_parents)[::-1] for j in joints]  # scene root … joint
     common = 0
     while all(len(c) > common for c in chains) and len({c[common] for c in chains}) == 1:
         common += 1
@@ -258,7 +268,7 @@ def _names(gltf, order: list[int]) -> tuple[str, ...]:
 def _root_world(path: Path, gltf, root: int) -> tuple[np.ndarray, np.ndarray, float]:
     """World ``(rotation wxyz, translation, uniform scale)`` of the nodes above ``root``."""
     q, t, s = np.array([1.0, 0, 0, 0]), np.zeros(3), 1.0
-    for n in _ancestors(root, _parents(gltf))[1:]:  # root's parent … scene root
+    for n in _ancestors(path, root, _parents(path, gltf))[1:]:  # root's parent … scene root
         nq, nt, ns = _node_trs(path, gltf.nodes[n])
         if np.ptp(ns) > 1e-6 * max(abs(ns).max(), 1e-12):
             warnings.warn(f"{path}: node {gltf.nodes[n].name!r} above the skeleton has a non-uniform scale; "
@@ -326,7 +336,11 @@ def _sample(times: np.ndarray, keys: np.ndarray, values: np.ndarray, interpolati
     return quat_normalize(out) if rotation else out
 
 
-def _frame_times(keys: list[np.ndarray], fps: float | None) -> tuple[np.ndarray, float]:
+MAX_SAMPLES = 50_000_000  # frames × joints read from one glTF animation (~1.6 GB of rotations)
+
+
+def _frame_times(path: Path, keys: list[np.ndarray], fps: float | None, n_joints: int) -> tuple[np.ndarray, float]:
+    """Frame times ``t0 + i / fps`` ``(F,)`` covering every channel's keys, and ``fps``."""
     start = min(float(k[0]) for k in keys)
     end = max(float(k[-1]) for k in keys)
     if fps is None:
@@ -340,8 +354,11 @@ def _frame_times(keys: list[np.ndarray], fps: float | None) -> tuple[np.ndarray,
             fps = 1.0 / float(np.median(steps)) if steps.size else 30.0
         if abs(fps - round(fps)) < 1e-6 * fps:
             fps = float(round(fps))
-    count = int(np.floor((end - start) * fps + 1e-3)) + 1
-    return start + np.arange(count) / fps, fps
+    count = (end - start) * fps + 1e-3
+    if not np.isfinite(count) or (count + 1) * n_joints > MAX_SAMPLES:
+        raise InputError(path, f"the animation spans {end - start:.6g} s at {fps:.6g} fps: {count:.3g} frames of "
+                               f"{n_joints} joints, more than usdmotion reads ({MAX_SAMPLES:,} joint samples)")
+    return start + np.arange(int(count) + 1) / fps, fps
 
 
 def read_gltf(path: str | os.PathLike, skin: int | None = None) -> Motion:
@@ -349,9 +366,21 @@ def read_gltf(path: str | os.PathLike, skin: int | None = None) -> Motion:
 
     Raises:
         InputError: unreadable container, no skin, several different skins and no
-            ``skin``, no skeletal animation (or morph-target weights only), bad accessors.
+            ``skin``, no skeletal animation (or morph-target weights only), bad accessors,
+            and any field of the wrong type (pygltflib does not check types: a string
+            where an index belongs surfaces as a TypeError, reported as one line).
     """
     path = Path(path)
+    try:
+        return _read(path, skin)
+    except UsdMotionError:
+        raise
+    except (TypeError, AttributeError, KeyError, IndexError, ValueError, OverflowError) as exc:
+        text = str(exc).splitlines()[0] if str(exc) else ""
+        raise InputError(path, f"malformed glTF document ({type(exc).__name__}: {text})") from None
+
+
+def _read(path: Path, skin: int | None) -> Motion:
     gltf, buffers = _load(path)
     skin_index = _pick_skin(path, gltf, skin)
     order, parents = _skeleton(path, gltf, skin_index)
@@ -389,8 +418,8 @@ def read_gltf(path: str | os.PathLike, skin: int | None = None) -> Motion:
         gltf.skins[skin_index].extras, dict) else None
     extras = extras if isinstance(extras, dict) else {}
     fps = extras.get("fps")
-    times, fps = _frame_times([k for _, _, k, _, _ in channels], float(fps) if isinstance(fps, (int, float))
-                              and fps > 0 else None)
+    times, fps = _frame_times(path, [k for _, _, k, _, _ in channels],
+                              float(fps) if isinstance(fps, (int, float)) and 0 < fps < 1e6 else None, len(order))
     n_frames, n_joints = len(times), len(order)
     rotations = np.broadcast_to(rest_q, (n_frames, n_joints, 4)).copy()
     translations = np.broadcast_to(rest_t, (n_frames, n_joints, 3)).copy()
