@@ -329,11 +329,13 @@ def test_two_skins_pick_one_with_an_option(good, tmp_path, capsys):
     two["skins"].append({"name": "Other", "joints": two["skins"][0]["joints"][1:5]})
     path = tmp_path / "two.glb"
     path.write_bytes(_glb(two, binary))
-    assert main(["convert", str(path), str(tmp_path / "a.bvh"), "--skin", "0"]) == 0
-    assert main(["convert", str(path), str(tmp_path / "b.bvh"), "--skin", "1"]) == 0
+    assert main(["convert", str(path), str(tmp_path / "a.bvh"), "--skeleton", "0"]) == 0
+    assert main(["convert", str(path), str(tmp_path / "b.bvh"), "--skeleton", "1"]) == 0
+    assert main(["info", str(path), "--skeleton", "Other"]) == 0  # every reading command, by name too
     assert read_motion(tmp_path / "b.bvh").n_joints == 4
-    assert main(["convert", str(path), str(tmp_path / "c.bvh"), "--skin", "5"]) == 2
-    assert "--skin 5" in capsys.readouterr().err
+    assert read_motion(tmp_path / "a.bvh").n_joints == read_motion(path, skeleton="0").n_joints > 4
+    assert main(["convert", str(path), str(tmp_path / "c.bvh"), "--skeleton", "5"]) == 2
+    assert "--skeleton 5: no such skin" in capsys.readouterr().err
     assert not (tmp_path / "c.bvh").exists()
 
 
@@ -374,15 +376,16 @@ def test_reader_samples_step_cubic_and_sparse_keys(good, tmp_path):
     for sampler in step["animations"][0]["samplers"]:
         sampler["interpolation"] = "STEP"
     (tmp_path / "step.glb").write_bytes(_glb(step, binary))
-    np.testing.assert_allclose(joint_positions(read_motion(tmp_path / "step.glb")), joint_positions(base), atol=1e-5)  # cm
+    np.testing.assert_allclose(joint_positions(read_motion(tmp_path / "step.glb")), joint_positions(base),
+                               atol=1e-5)  # cm
 
     cubic, blob = json.loads(json.dumps(document)), binary
     gltf = pygltflib.GLTF2.load_from_bytes(_glb(document, binary))
     for sampler in cubic["animations"][0]["samplers"]:
         values = gltf_accessor(gltf, sampler["output"])
         tangents = np.zeros_like(values)
-        blob, sampler["output"] = _append(cubic, blob, np.stack([tangents, values, tangents], 1).reshape(-1, values.shape[1]),
-                                          "VEC4" if values.shape[1] == 4 else "VEC3")
+        keyed = np.stack([tangents, values, tangents], 1).reshape(-1, values.shape[1])
+        blob, sampler["output"] = _append(cubic, blob, keyed, "VEC4" if values.shape[1] == 4 else "VEC3")
         sampler["interpolation"] = "CUBICSPLINE"
     (tmp_path / "cubic.glb").write_bytes(_glb(cubic, blob))
     np.testing.assert_allclose(joint_positions(read_motion(tmp_path / "cubic.glb")), joint_positions(base), atol=1e-5)

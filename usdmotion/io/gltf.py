@@ -32,24 +32,17 @@ import numpy as np
 
 from usdmotion.errors import OutputError
 from usdmotion.io.atomic import atomic_output
+from usdmotion.io.gltf_read import EXTRAS_KEY, up_rotation
 from usdmotion.kinematics import compose_transforms, local_translations, rest_pose
 from usdmotion.motion import Motion
-from usdmotion.rotations import axis_angle_quat, quat_mul, quat_normalize, quat_rotate, wxyz_to_xyzw
+from usdmotion.rotations import quat_mul, quat_normalize, quat_rotate, wxyz_to_xyzw
 
 GLTF_EXTENSIONS = (".glb", ".gltf")
-EXTRAS_KEY = "usdmotion"
 BODY_COLOR = (0.80, 0.62, 0.52, 1.0)  # linear RGBA, as the USD body's displayColor
 
 _FLOAT, _UBYTE, _USHORT, _UINT = 5126, 5121, 5123, 5125
 _ARRAY_BUFFER, _ELEMENT_ARRAY_BUFFER = 34962, 34963
 _TYPES = {1: "SCALAR", 3: "VEC3", 4: "VEC4", 16: "MAT4"}
-
-
-def up_rotation(up_axis: str) -> np.ndarray:
-    """wxyz quaternion ``(4,)`` taking ``up_axis``-up coordinates to glTF's Y-up."""
-    if up_axis == "Z":
-        return axis_angle_quat("X", np.float64(-np.pi / 2))
-    return np.array([1.0, 0.0, 0.0, 0.0])
 
 
 def gltf_frames(motion: Motion) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

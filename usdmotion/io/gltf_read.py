@@ -5,9 +5,9 @@ animation of those nodes' rotation / translation. The reader
 
 * checks the container itself (GLB header and chunks, JSON, buffer sizes, accessor ranges,
   finite values) and turns every problem into one :class:`~usdmotion.errors.InputError`;
-* takes the joints of the skin (``skin=`` picks one of several), plus any node between
-  them and their lowest common ancestor, parents before children; the transforms of the
-  nodes above that root are folded into the root;
+* takes the joints of the skin (``skin=``, the CLI's ``--skeleton``, picks one of several),
+  plus any node between them and their lowest common ancestor, parents before children;
+  the transforms of the nodes above that root are folded into the root;
 * samples every channel (LINEAR, STEP, CUBICSPLINE) at ``t0 + i / fps``, ``fps`` being the
   one usdmotion wrote (``skins[s].extras.usdmotion.fps``) or the median key spacing;
 * returns metres, Y up, unless usdmotion wrote the file: then the source's units, up axis,
@@ -26,15 +26,22 @@ from pathlib import Path
 import numpy as np
 
 from usdmotion.errors import InputError, UsdMotionError, UsdMotionWarning
-from usdmotion.io.gltf import EXTRAS_KEY, up_rotation
 from usdmotion.motion import Motion
-from usdmotion.rotations import (matrix_to_quat, quat_conjugate, quat_mul, quat_normalize, quat_rotate, quat_slerp,
-                                 xyzw_to_wxyz)
+from usdmotion.rotations import (axis_angle_quat, matrix_to_quat, quat_conjugate, quat_mul, quat_normalize,
+                                 quat_rotate, quat_slerp, xyzw_to_wxyz)
 
 GLB_MAGIC = b"glTF"
+EXTRAS_KEY = "usdmotion"  # skins[s].extras[EXTRAS_KEY]: what usdmotion keeps of the source (see io.gltf)
 _JSON_CHUNK, _BIN_CHUNK = 0x4E4F534A, 0x004E4942
 _COMPONENTS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
 _DTYPES = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16, 5125: np.uint32, 5126: np.float32}
+
+
+def up_rotation(up_axis: str) -> np.ndarray:
+    """wxyz quaternion ``(4,)`` taking ``up_axis``-up coordinates to glTF's Y-up (``Rx(-90°)`` for Z)."""
+    if up_axis == "Z":
+        return axis_angle_quat("X", np.float64(-np.pi / 2))
+    return np.array([1.0, 0.0, 0.0, 0.0])
 
 
 def _glb_chunks(path: Path, data: bytes) -> tuple[bytes, bytes | None]:
@@ -205,7 +212,7 @@ def _node_trs(path: Path, node) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return quat_normalize(rotation), translation, scale
 
 
-def _pick_skin(path: Path, gltf, skin: int | None) -> int:
+def _pick_skin(path: Path, gltf, skin: str | int | None) -> int:
     skins = gltf.skins or []
     if not skins:
         paths = {c.target.path for a in gltf.animations or [] for c in a.channels or [] if c.target is not None}
@@ -214,15 +221,19 @@ def _pick_skin(path: Path, gltf, skin: int | None) -> int:
                                    "skeletal animation (a skin with joints and an animation of them)")
         raise InputError(path, "no skin in this glTF: usdmotion reads skeletal animation "
                                "(a skin with joints and an animation of them)")
+    listing = ", ".join(f"{i} {s.name or '(unnamed)'!r} ({len(s.joints or [])} joints)" for i, s in enumerate(skins))
     if skin is not None:
-        if not 0 <= skin < len(skins):
-            raise InputError(path, f"--skin {skin}: the file has skins 0…{len(skins) - 1}")
-        return skin
+        text = str(skin).strip()
+        if text.isdigit() and 0 <= int(text) < len(skins):
+            return int(text)
+        named = [i for i, s in enumerate(skins) if s.name == text]
+        if named:
+            return named[0]
+        raise InputError(path, f"--skeleton {text}: no such skin; the file has {listing}")
     distinct = {tuple(s.joints or []) for s in skins}
     if len(distinct) > 1:
-        listing = ", ".join(f"{i} {s.name or '(unnamed)'!r} ({len(s.joints or [])} joints)"
-                            for i, s in enumerate(skins))
-        raise InputError(path, f"{len(skins)} skins with different joints ({listing}): choose one with --skin N")
+        raise InputError(path, f"{len(skins)} skins with different joints ({listing}): choose one with "
+                               "--skeleton INDEX|NAME")
     return 0
 
 
@@ -361,8 +372,9 @@ def _frame_times(path: Path, keys: list[np.ndarray], fps: float | None, n_joints
     return start + np.arange(int(count) + 1) / fps, fps
 
 
-def read_gltf(path: str | os.PathLike, skin: int | None = None) -> Motion:
-    """Read the skin ``skin`` (default: the only one) of a glTF 2.0 file and its animation.
+def read_gltf(path: str | os.PathLike, skin: str | int | None = None) -> Motion:
+    """Read the skin ``skin`` (index or name; default: the only one) of a glTF 2.0 file and
+    its animation.
 
     Raises:
         InputError: unreadable container, no skin, several different skins and no
@@ -380,7 +392,7 @@ def read_gltf(path: str | os.PathLike, skin: int | None = None) -> Motion:
         raise InputError(path, f"malformed glTF document ({type(exc).__name__}: {text})") from None
 
 
-def _read(path: Path, skin: int | None) -> Motion:
+def _read(path: Path, skin: str | int | None) -> Motion:
     gltf, buffers = _load(path)
     skin_index = _pick_skin(path, gltf, skin)
     order, parents = _skeleton(path, gltf, skin_index)
