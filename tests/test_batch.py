@@ -230,8 +230,8 @@ def test_scheduler_and_two_worker_processes_survive_a_killed_worker(library, tmp
         cluster.close()
 
 
-def test_segment_and_render_on_one_cluster(library, tmp_path):
-    """Segment (with clips) and render on one LocalCluster, byte-identical to the single-file
+def test_glb_segment_and_render_on_one_cluster(library, tmp_path):
+    """Convert to GLB, segment (with clips) and render on one LocalCluster, byte-identical to the single-file
     commands (retarget's path is the same but its JAX compile is too slow for this suite)."""
     from usdmotion.batch.engine import dask_client
 
@@ -239,10 +239,11 @@ def test_segment_and_render_on_one_cluster(library, tmp_path):
     out, single = tmp_path / "out", tmp_path / "single"
     single.mkdir()
     with dask_client(2) as client:
+        glb = run_batch("convert", library, out, params={"to": "glb"}, include=("session2/*.usda",), client=client)
         seg = run_batch("segment", library, out, params={"export_clips": True},
                         include=("session2/trimmed/walk_part[12].bvh",), client=client)
         ren = run_batch("render", library, out, include=("session2/walk_head.usda",), client=client)
-    for result in (seg, ren):
+    for result in (glb, seg, ren):
         assert not result.failed, [r["error"] for r in result.failed]
     assert len(seg.rows) == 2
 
@@ -253,6 +254,8 @@ def test_segment_and_render_on_one_cluster(library, tmp_path):
     assert all(c.read_bytes() == (single / "clips" / c.name).read_bytes() for c in clips)
 
     head = library / "session2/walk_head.usda"
+    assert main(["convert", str(head), str(single / "walk_head.glb")]) == 0  # the file stores its name
+    assert (single / "walk_head.glb").read_bytes() == (out / "session2/walk_head.glb").read_bytes()
     assert main(["render", str(head), str(single / "v.mp4"), "--size", "640x360"]) == 0
     assert (single / "v.mp4").read_bytes() == (out / "session2/walk_head.mp4").read_bytes()
 

@@ -11,8 +11,8 @@ from usdmotion.errors import InputError
 
 #: Operation → what it writes per take (see :func:`outputs_for`).
 OPERATIONS = ("convert", "analyze", "segment", "retarget", "render")
-MOTION_SUFFIXES = (".bvh", ".usd", ".usda", ".usdc", ".usdz")
-DEFAULT_INCLUDE = ("**/*.bvh", "**/*.usd", "**/*.usda", "**/*.usdc", "**/*.usdz")
+MOTION_SUFFIXES = (".bvh", ".usd", ".usda", ".usdc", ".usdz", ".glb", ".gltf")
+DEFAULT_INCLUDE = tuple(f"**/*{suffix}" for suffix in MOTION_SUFFIXES)
 #: ``read_motion`` keyword arguments a job starts from (what the single-file commands default to).
 DEFAULT_READ_OPTIONS = {"units": None, "up_axis": None, "root_offset": "auto", "lenient": False,
                         "ignore_joint_positions": False, "skeleton": None}

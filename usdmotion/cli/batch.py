@@ -19,7 +19,7 @@ SrcDir = Annotated[Path, typer.Argument(help="Folder of motion files (searched r
 OutDir = Annotated[Path, typer.Argument(help="Output folder: mirrors the source tree; holds catalogue.parquet.",
                                         show_default=False)]
 Include = Annotated[list[str] | None, typer.Option(help="Glob(s) of takes to process, relative to SRC_DIR "
-                                                        "(default: every .bvh/.usd* file). Repeatable.",
+                                                        "(default: every .bvh/.usd*/.glb/.gltf file). Repeatable.",
                                                    show_default=False)]
 Workers = Annotated[int | None, typer.Option(help="Worker processes of the local cluster (default: one per core).",
                                              show_default=False, min=1)]
@@ -32,6 +32,7 @@ class ConvertTo(str, Enum):
     usdc = "usdc"
     usdz = "usdz"
     usda = "usda"
+    glb = "glb"
     bvh = "bvh"
 
 
@@ -65,12 +66,12 @@ def _run(operation: str, src_dir: Path, out_dir: Path, read_options: dict, param
 @reads_motion
 def convert(src_dir: SrcDir, out_dir: OutDir,
             to: Annotated[ConvertTo, typer.Option("--to", help="Output format.")] = ConvertTo.usdc,
-            mesh: Annotated[bool, typer.Option("--mesh", help="Add a skinned body Mesh (USD outputs).")] = False,
+            mesh: Annotated[bool, typer.Option("--mesh", help="Add a skinned body mesh (USD and GLB outputs).")] = False,
             include: Include = None, workers: Workers = None, scheduler: Scheduler = None, force: Force = False,
             read: ReadOptions = ReadOptions()) -> None:
     """Convert every take (like ``usdmotion convert``)."""
     if mesh and to == ConvertTo.bvh:
-        raise ValueError("--mesh needs a USD output (--to usdc, usdz or usda)")
+        raise ValueError("--mesh needs a USD or glTF output (--to usdc, usdz, usda or glb)")
     _run("convert", src_dir, out_dir, _read_options(read),
          {"to": to.value, "mesh": mesh}, include, force, workers, scheduler)
 

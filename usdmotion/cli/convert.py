@@ -1,4 +1,4 @@
-"""``usdmotion convert IN OUT``: BVH ⇄ UsdSkel (.usda/.usdc/.usdz), BVH → BVH, USD → USD."""
+"""``usdmotion convert IN OUT``: between BVH, UsdSkel (.usda/.usdc/.usdz) and glTF 2.0 (.glb/.gltf)."""
 
 from __future__ import annotations
 
@@ -16,19 +16,26 @@ from usdmotion.cli.app import app
 @reads_motion
 def convert(
     source: InputPath,
-    output: Annotated[Path, typer.Argument(help="Output: .usda, .usdc, .usdz, .usd or .bvh.", show_default=False)],
+    output: Annotated[Path, typer.Argument(help="Output: .usda, .usdc, .usdz, .usd, .bvh, .glb or .gltf.",
+                                           show_default=False)],
     validate: Annotated[bool, typer.Option(help="Run pxr.UsdValidation on a USD output.")] = True,
-    mesh: Annotated[bool, typer.Option("--mesh", help="Add a volumetric body Mesh skinned to the Skeleton "
-                                                      "(USD output only).")] = False,
+    mesh: Annotated[bool, typer.Option("--mesh", help="Add a volumetric body mesh skinned to the skeleton "
+                                                      "(USD and glTF outputs).")] = False,
+    fps: Annotated[float | None, typer.Option("--fps", help="Resample to this frame rate first (e.g. 30 for a "
+                                                            "smaller file).", show_default=False)] = None,
     read: ReadOptions = ReadOptions(),
 ) -> None:
-    """Convert a motion between BVH and OpenUSD (UsdSkel)."""
+    """Convert a motion between BVH, OpenUSD (UsdSkel) and glTF 2.0 (GLB)."""
     from usdmotion.cli._progress import progress
     from usdmotion.io.convert import check_convert_paths, convert_motion
 
     check_convert_paths(source, output, mesh)
     start = time.perf_counter()
     motion = read.read(source)
+    if fps is not None:
+        from usdmotion.ops.edit.timewarp import resample
+
+        motion = resample(motion, fps)
     with progress(f"writing {output.name}"):
         problems = convert_motion(motion, output, mesh, validate)
     for problem in problems:

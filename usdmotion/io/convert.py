@@ -1,4 +1,4 @@
-"""Write a read motion to another format: the core of ``usdmotion convert`` and ``batch convert``.
+"""Write a read motion to another format (BVH, UsdSkel, glTF): the core of ``usdmotion convert`` and ``batch convert``.
 
 Both front ends call :func:`convert_motion` after ``read_motion``, so one take converted
 either way gives byte-identical files.
@@ -13,6 +13,7 @@ from usdmotion.errors import OutputError
 from usdmotion.motion import Motion
 
 USD_SUFFIXES = (".usd", ".usda", ".usdc", ".usdz")
+GLTF_SUFFIXES = (".glb", ".gltf")
 
 
 def check_convert_paths(source: str | os.PathLike, output: str | os.PathLike, mesh: bool = False) -> None:
@@ -20,15 +21,15 @@ def check_convert_paths(source: str | os.PathLike, output: str | os.PathLike, me
     source, output = Path(source), Path(output)
     if source.resolve() == output.resolve():
         raise OutputError(f"{output}: output would overwrite the input")
-    if mesh and output.suffix.lower() not in USD_SUFFIXES:
-        raise OutputError(f"{output}: --mesh needs a USD output (.usd, .usda, .usdc, .usdz)")
+    if mesh and output.suffix.lower() not in USD_SUFFIXES + GLTF_SUFFIXES:
+        raise OutputError(f"{output}: --mesh needs a USD or glTF output (.usd, .usda, .usdc, .usdz, .glb, .gltf)")
 
 
 def convert_motion(motion: Motion, output: str | os.PathLike, mesh: bool = False, validate: bool = True) -> list[str]:
     """Write ``motion`` to ``output`` (format by extension, atomically); return validation problems.
 
     Args:
-        mesh: add a volumetric body Mesh skinned to the Skeleton (USD outputs only).
+        mesh: add a volumetric body mesh skinned to the skeleton (USD and glTF outputs).
         validate: run ``pxr.UsdValidation`` on a USD output; the problems are returned, not raised.
     """
     from usdmotion.io import write_motion
@@ -36,10 +37,15 @@ def convert_motion(motion: Motion, output: str | os.PathLike, mesh: bool = False
     output = Path(output)
     options = {}
     if mesh:
-        from usdmotion.io.usd_mesh import body_decorator
         from usdmotion.skin import build_body
 
-        options["decorate"] = body_decorator(build_body(motion))
+        body = build_body(motion)
+        if output.suffix.lower() in GLTF_SUFFIXES:
+            options["body"] = body
+        else:
+            from usdmotion.io.usd_mesh import body_decorator
+
+            options["decorate"] = body_decorator(body)
     write_motion(motion, output, **options)
     if validate and output.suffix.lower() in USD_SUFFIXES:
         from usdmotion.io.usd import validate_stage
