@@ -69,7 +69,7 @@ def convert(src_dir: SrcDir, out_dir: OutDir,
             mesh: Annotated[bool, typer.Option("--mesh", help="Add a skinned body mesh (USD and GLB outputs).")] = False,
             include: Include = None, workers: Workers = None, scheduler: Scheduler = None, force: Force = False,
             read: ReadOptions = ReadOptions()) -> None:
-    """Convert every take (like ``usdmotion convert``)."""
+    """Convert every take (like 'usdmotion convert')."""
     if mesh and to == ConvertTo.bvh:
         raise ValueError("--mesh needs a USD or glTF output (--to usdc, usdz, usda or glb)")
     _run("convert", src_dir, out_dir, _read_options(read),
@@ -80,8 +80,8 @@ def convert(src_dir: SrcDir, out_dir: OutDir,
 @reads_motion
 def analyze(src_dir: SrcDir, out_dir: OutDir, include: Include = None, workers: Workers = None,
             scheduler: Scheduler = None, force: Force = False, read: ReadOptions = ReadOptions()) -> None:
-    """Kinematics of every take (like ``usdmotion analyze --summary --out .parquet``): summaries,
-    catalogue columns and the per-frame tables in OUT_DIR/frames/ (partitioned by take)."""
+    """Kinematics of every take (like 'usdmotion analyze --summary S --out F.parquet'): summaries,
+    catalogue columns, per-frame tables in OUT_DIR/frames/ (partitioned by take)."""
     _run("analyze", src_dir, out_dir, _read_options(read), {}, include, force, workers, scheduler)
 
 
@@ -91,7 +91,7 @@ def segment(src_dir: SrcDir, out_dir: OutDir,
             export_clips: Annotated[bool, typer.Option("--export-clips", help="Also write one BVH per segment.")]
             = False, include: Include = None, workers: Workers = None, scheduler: Scheduler = None,
             force: Force = False, read: ReadOptions = ReadOptions()) -> None:
-    """Segment every take into actions (like ``usdmotion segment --out``)."""
+    """Segment every take into actions (like 'usdmotion segment --out')."""
     _run("segment", src_dir, out_dir, _read_options(read),
          {"export_clips": export_clips}, include, force, workers, scheduler)
 
@@ -103,7 +103,7 @@ def retarget(src_dir: SrcDir, out_dir: OutDir,
              to: Annotated[ConvertTo, typer.Option("--to", help="Output format.")] = ConvertTo.usdc,
              include: Include = None, workers: Workers = None, scheduler: Scheduler = None, force: Force = False,
              read: ReadOptions = ReadOptions()) -> None:
-    """Retarget every take onto one rig (like ``usdmotion retarget --target --report``)."""
+    """Retarget every take onto one rig (like 'usdmotion retarget --target --report')."""
     from usdmotion.errors import InputError
 
     if not target.is_file():
@@ -118,7 +118,7 @@ def render(src_dir: SrcDir, out_dir: OutDir,
            size: Annotated[str, typer.Option(help="Preview size WIDTHxHEIGHT.")] = "640x360",
            include: Include = None, workers: Workers = None, scheduler: Scheduler = None, force: Force = False,
            read: ReadOptions = ReadOptions()) -> None:
-    """A preview MP4 of every take (like ``usdmotion render --size``)."""
+    """A preview MP4 of every take (like 'usdmotion render --size')."""
     from usdmotion.cli.render import _size
 
     _run("render", src_dir, out_dir, _read_options(read), {"size": list(_size(size))},
