@@ -14,6 +14,7 @@ from usdmotion.motion import Motion
 
 BVH_EXTENSIONS = (".bvh",)
 USD_EXTENSIONS = (".usd", ".usda", ".usdc", ".usdz")
+AMC_EXTENSIONS = (".amc",)
 
 
 def _kind(path: Path) -> str | None:
@@ -22,15 +23,20 @@ def _kind(path: Path) -> str | None:
         return "bvh"
     if ext in USD_EXTENSIONS:
         return "usd"
+    if ext in AMC_EXTENSIONS:
+        return "amc"
     return None
 
 
 def read_motion(path: str | os.PathLike, root_offset: str = "auto", units: str | float | None = None,
-                up_axis: str | None = None, lenient: bool = False, ignore_joint_positions: bool = False) -> Motion:
-    """Read a BVH or UsdSkel file.
+                up_axis: str | None = None, lenient: bool = False, ignore_joint_positions: bool = False,
+                skeleton: str | os.PathLike | None = None) -> Motion:
+    """Read a BVH, UsdSkel or Acclaim AMC file.
 
     For BVH, ``units`` (default ``"cm"``) and ``up_axis`` (default ``"Y"``) state what the
-    file does not; for USD they come from the stage and, if given, override it.
+    file does not; for USD they come from the stage and, if given, override it. For AMC,
+    ``skeleton`` is the ``.asf`` (default: the one beside it, see
+    :func:`usdmotion.io.amc.find_skeleton`); units come from the ASF unless given.
     """
     import dataclasses
 
@@ -52,7 +58,13 @@ def read_motion(path: str | os.PathLike, root_offset: str = "auto", units: str |
         if up_axis is not None:
             changes["up_axis"] = up_axis
         return dataclasses.replace(motion, **changes) if changes else motion
-    raise InputError(path, f"unknown input format {path.suffix!r} (use .bvh, {', '.join(USD_EXTENSIONS)})")
+    if kind == "amc":
+        from usdmotion.io.amc import read_amc
+
+        return read_amc(path, skeleton=skeleton, units=units)
+    if path.suffix.lower() == ".asf":
+        raise InputError(path, "an .asf file holds only a skeleton: read its .amc motion (with --skeleton FILE.asf)")
+    raise InputError(path, f"unknown input format {path.suffix!r} (use .bvh, .amc, {', '.join(USD_EXTENSIONS)})")
 
 
 def write_motion(motion: Motion, path: str | os.PathLike, **options) -> Path:
