@@ -438,7 +438,7 @@ def main() -> int:
     parser.add_argument("--data", type=Path, default=Path(os.environ.get("USDMOTION_SHARED_DATA",
                                                                           REPO.parent / "shared" / "data")))
     args = parser.parse_args()
-    motions = {n: read_motion(args.data / bvh) for n, (bvh, _) in bench.TAKES.items()}
+    motions = {n: bench.read_take(args.data, n) for n in bench.TAKES}
     labels = {n: load_labels(args.data / lab) for n, (_, lab) in bench.TAKES.items()}
     labelled = [make_take(n, motions[n], labels[n], "labelled") for n in bench.TAKES]
     clips = {c: read_motion(args.data / f"bandai1/dataset-1_{c}_001.bvh")

@@ -20,7 +20,9 @@ Method = Annotated[MethodChoice, typer.Option(
          "candidates on the low-passed norm signal.", case_sensitive=False)]
 Param = Annotated[float, typer.Option(min=0.0, max=1.0, help="heuristic: swing-ratio threshold (paper: 0.5).")]
 Cutoff = Annotated[float, typer.Option(help="Low-pass cut-off of the norm signal, Hz (heuristic, plot).")]
-Penalty = Annotated[float, typer.Option(help="kcpd: cost of one cut (larger: fewer cuts).")]
+Penalty = Annotated[float | None, typer.Option(
+    help="kcpd: cost of one cut (larger: fewer cuts); default: ln N for N samples at 10 Hz (grows with the "
+         "take's length, no labels needed).", show_default=False)]
 MinLength = Annotated[float, typer.Option(help="kcpd: shortest segment, seconds.")]
 Refine = Annotated[bool, typer.Option(
     "--refine/--no-refine", help="kcpd: move each cut to the nearest local minimum of the bone energy "
@@ -33,7 +35,7 @@ Preset = Annotated[str | None, typer.Option(
     show_default=False)]
 
 
-def run_segmentation(motion, source: Path, method: MethodChoice, param: float, cutoff: float, penalty: float,
+def run_segmentation(motion, source: Path, method: MethodChoice, param: float, cutoff: float, penalty: float | None,
                      min_length: float, role: list[str] | None, preset: str | None, refine: bool = True):
     """Find roles and cut ``motion`` (errors name ``source``)."""
     from usdmotion.cli._progress import progress
@@ -47,7 +49,9 @@ def run_segmentation(motion, source: Path, method: MethodChoice, param: float, c
 
 
 def _setting(key: str, value) -> str:
-    return key if value is True else f"no {key}" if value is False else f"{key}={value:g}"
+    if isinstance(value, str):
+        return f"{key}={value}"
+    return key if value is True else f"no {key}" if value is False else f"{key}={value:.4g}"
 
 
 def print_segments(seg, source: Path, chosen: int | None, as_json: bool, clips: list[Path]) -> None:
@@ -61,12 +65,19 @@ def print_segments(seg, source: Path, chosen: int | None, as_json: bool, clips: 
     from rich.console import Console
     from rich.table import Table
 
-    table = Table("#", "first frame", "last frame", "frames", "start (s)", "end (s)", "duration (s)",
-                  title=f"{source.name}: {len(doc['segments'])} segments ({seg.method}, "
-                        f"{', '.join(_setting(k, v) for k, v in seg.params.items())})")
+    details = {d["frame"]: d for d in doc.get("cut_details", [])}
+    columns = ["#", "first frame", "last frame", "frames", "start (s)", "end (s)", "duration (s)"]
+    if details:
+        columns.append("cut confidence")
+    table = Table(*columns, title=f"{source.name}: {len(doc['segments'])} segments ({seg.method}, "
+                                  f"{', '.join(_setting(k, v) for k, v in seg.params.items())})")
     for s in rows:
-        table.add_row(str(s["index"]), str(s["start_frame"]), str(s["end_frame"]), str(s["frames"]),
-                      f"{s['start_time']:.3f}", f"{s['end_time']:.3f}", f"{s['frames'] / seg.fps:.3f}")
+        cells = [str(s["index"]), str(s["start_frame"]), str(s["end_frame"]), str(s["frames"]),
+                 f"{s['start_time']:.3f}", f"{s['end_time']:.3f}", f"{s['frames'] / seg.fps:.3f}"]
+        if details:
+            cut = details.get(s["start_frame"])
+            cells.append("" if cut is None else f"{cut['confidence']:.2f}" + (" check" if cut["low_confidence"] else ""))
+        table.add_row(*cells)
     console = Console(width=120)
     console.print(table)
     for c in clips:

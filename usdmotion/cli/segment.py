@@ -26,7 +26,7 @@ def segment(
     method: Method = MethodChoice.kcpd,
     param: Param = 0.5,
     cutoff: Cutoff = 2.0,
-    penalty: Penalty = 6.0,
+    penalty: Penalty = None,
     min_length: MinLength = 1.0,
     refine: Refine = True,
     role: Roles = None,

@@ -24,7 +24,7 @@ def segment_eval(
                                                   "this many seconds of the labelled cut.")] = 0.5,
     param: Param = 0.5,
     cutoff: Cutoff = 2.0,
-    penalty: Penalty = 6.0,
+    penalty: Penalty = None,
     min_length: MinLength = 1.0,
     refine: Refine = True,
     role: Roles = None,
