@@ -203,7 +203,7 @@ def test_kernel_change_points_on_piecewise_stationary_signal():
     theta[n:2 * n, 4:6] -= 1.0                                           # new mean pose
     theta[2 * n:, 2:4] += 0.6 * np.sin(2 * np.pi * 0.7 * t[2 * n:])[:, None]  # new oscillation
     x, pool = S.pooled_features(theta, fps)
-    cuts = S.kernel_change_points(x, S.DEFAULT_PENALTY, 10) * pool
+    cuts = S.kernel_change_points(x, None, 10) * pool
     assert len(cuts) == 2
     np.testing.assert_allclose(cuts, [n, 2 * n], atol=0.25 * fps)
 
@@ -250,8 +250,8 @@ def test_refined_cut_lands_in_the_pause_between_two_actions():
     theta[:a, :4] += 0.5 * np.sin(2 * np.pi * 1.5 * t[:a])[:, None]
     theta[a + pause:, 4:] -= 0.8
     theta[a + pause:, 4:6] += 0.4 * np.sin(2 * np.pi * 0.8 * (t[a + pause:] - t[a + pause]))[:, None]
-    x, pool = S.pooled_features(theta, fps)
-    raw = S.kernel_change_points(x, S.DEFAULT_PENALTY, 10) * pool
+    x, pool = S.pooled_features(theta, fps, speed_weight=0.25)
+    raw = S.kernel_change_points(x, 6.0, 10) * pool
     assert raw.size == 1 and abs(raw[0] - (a + pause // 2)) <= 0.5 * fps
     assert not a <= raw[0] < a + pause                                 # the detector alone misses the pause
     refined = S.refine_to_rest(S.bone_energy(S.angular_speed(theta, fps), fps), raw, fps)

@@ -44,15 +44,15 @@ DEFAULT_CUTOFF_HZ = 2.0
 #: ``KCPD_RATE_HZ``; a label-free rule from the take's length), speed weight (s), minimum segment (s),
 #: rate (Hz), feature set, and the longest segment treated as a transition between two actions (s).
 DEFAULT_PENALTY_SCALE = 1.0
-DEFAULT_SPEED_WEIGHT = 0.25
+DEFAULT_SPEED_WEIGHT = 0.5
 DEFAULT_MIN_LENGTH_S = 1.0
 KCPD_RATE_HZ = 10.0
 FEATURE_SETS = ("paper", "extended")
-DEFAULT_FEATURES = "paper"
-DEFAULT_TRANSITION_S = 0.0
+DEFAULT_FEATURES = "extended"
+DEFAULT_TRANSITION_S = 1.5
 DEFAULT_MIN_CONFIDENCE = 0.0
-#: A cut's change region: split positions whose two-segment cost is within this fraction of the
-#: cut's gain of the best; a cut is *low confidence* below this confidence (see :func:`cut_confidence`).
+#: A cut's change region: split positions whose two-segment cost exceeds the cut's by less than this
+#: fraction of the penalty; a cut is *low confidence* below ``LOW_CONFIDENCE`` (:func:`cut_confidence`).
 REGION_FRACTION = 0.1
 LOW_CONFIDENCE = 0.5
 #: Cut refinement: moving average (s) of the bone energy, farthest move (s) to its local minimum.
@@ -310,8 +310,9 @@ def cut_confidence(x: np.ndarray, cuts: np.ndarray, penalty: float, min_size: in
     two-segment cost ``G(t) = cost[a, t) + cost[t, b)`` is evaluated at every split ``t``; the cut's
     *gain* is ``cost[a, b) − G(s)`` and its **confidence** ``1 − penalty / gain`` clipped to 0..1
     (0: the cut barely pays for itself; 0.5: it gains twice its penalty). Its **change region** is
-    the run of splits around ``s`` with ``G(t) ≤ G(s) + region_fraction · gain``: where else the
-    change could be put almost as well.
+    the run of splits around ``s`` with ``G(t) ≤ G(s) + region_fraction · penalty``: where else the
+    change could be put at a cost of less than that share of one cut's price (narrow for an abrupt
+    change, wide for a gradual one).
 
     Returns:
         ``(confidence (K,), regions (K, 2))``, regions as inclusive sample indices.
@@ -334,7 +335,7 @@ def cut_confidence(x: np.ndarray, cuts: np.ndarray, penalty: float, min_size: in
         at = int(cut - a - 1)
         gain = whole - profile[at]
         confidence[k] = float(np.clip(1.0 - penalty / gain, 0.0, 1.0)) if gain > 0 else 0.0
-        near = profile <= profile[at] + region_fraction * max(gain, 0.0)
+        near = profile <= profile[at] + region_fraction * penalty
         t_lo = min(min_size, int(cut - a))  # both sides keep at least min_size samples
         t_hi = max(b - a - min_size, int(cut - a))
         near[: max(t_lo - 1, 0)] = False
