@@ -139,7 +139,8 @@ def leave_one_take_out(takes: dict, labels: dict) -> dict:
                          "in_sample_best": {"setting": grid[best], "precision": pooled_all[best].precision,
                                             "recall": pooled_all[best].recall, "f1": pooled_all[best].f1},
                          "grid_size": len(grid)}
-        cells = " ".join(f"{v['true_positives']:>5.2g}/{v['detected']:<4.3g}of {v['labelled']:<2}" for v in per_take.values())
+        cells = " ".join(f"{v['true_positives']:>5.1f}/{v['detected']:<4.1f} of {v['labelled']:<1}"
+                         for v in per_take.values())
         print(f"{detector:<10} {cells} {p:>9.1%} {r:>9.1%} {f1:>6.3f}")
     for detector, res in out.items():
         b = res["in_sample_best"]
@@ -305,6 +306,7 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=20)
     parser.add_argument("--quick", action="store_true", help="only the leave-one-take-out table and the timing")
+    parser.add_argument("--timing-only", action="store_true", help="only the timing (section 5)")
     parser.add_argument("--data", type=Path, default=Path(os.environ.get("USDMOTION_SHARED_DATA",
                                                                           REPO.parent / "shared" / "data")))
     args = parser.parse_args()
@@ -315,8 +317,14 @@ def main() -> int:
     results = {
         "machine": {"python": platform.python_version(), "cpus": os.cpu_count(), "platform": platform.platform()},
         "paper": PAPER, "read_takes_s": read_s,
-        "leave_one_take_out": leave_one_take_out(takes, labels),
     }
+    if args.timing_only:
+        results["timing"] = timing(takes["86_01"], args.repeat)
+        out = REPO / "benchmarks" / "results" / "segment_timing.json"
+        out.write_text(json.dumps(results, indent=2) + "\n")
+        print(f"\nwrote {out.relative_to(REPO)}")
+        return 0
+    results["leave_one_take_out"] = leave_one_take_out(takes, labels)
     if not args.quick:
         results |= {"accuracy": accuracy(takes, labels), "heuristic_grid": heuristic_grid(takes, labels),
                     "kcpd_grid": kcpd_grid(takes, labels), "synthetic_bandai": synthetic(args.data),
