@@ -161,7 +161,8 @@ def fmt(s: Score) -> str:
 
 def accuracy(takes: dict, labels: dict) -> dict:
     out = {}
-    print("\n1. Labelled takes, shipped settings (IN-SAMPLE; one-to-one matching; region = labelled band ∪ cut ± tolerance)")
+    print("\n1. Labelled takes, shipped settings (IN-SAMPLE; one-to-one matching; region = labelled band ∪ cut "
+          "± tolerance)")
     print(f"{'method':<10} {'tol':>5} {'take':<6} {'det':>4} {'hits':>8} {'prec':>7} {'recall':>7} {'F1':>6}")
     for method, kw in DETECTORS.items():
         for tol in TOLERANCES:

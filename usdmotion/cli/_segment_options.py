@@ -76,7 +76,8 @@ def print_segments(seg, source: Path, chosen: int | None, as_json: bool, clips: 
                  f"{s['start_time']:.3f}", f"{s['end_time']:.3f}", f"{s['frames'] / seg.fps:.3f}"]
         if details:
             cut = details.get(s["start_frame"])
-            cells.append("" if cut is None else f"{cut['confidence']:.2f}" + (" check" if cut["low_confidence"] else ""))
+            flag = " check" if cut is not None and cut["low_confidence"] else ""
+            cells.append("" if cut is None else f"{cut['confidence']:.2f}{flag}")
         table.add_row(*cells)
     console = Console(width=120)
     console.print(table)

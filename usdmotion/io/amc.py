@@ -201,7 +201,6 @@ def motion_from_amc(skeleton: AsfSkeleton, values: np.ndarray, degrees: bool = T
     for k, axis in enumerate("xyz"):
         if f"t{axis}" in root_dofs:
             translation[:, k] = values[:, root_dofs.index(f"t{axis}")]
-    axes_scale = 1.0  # AsfSkeleton.axes are radians already
     for j in np.flatnonzero(bone_of >= 0):  # per bone, vectorised over frames (topology-sized loop)
         b = int(bone_of[j])
         dofs = skeleton.dofs[b]
@@ -209,9 +208,10 @@ def motion_from_amc(skeleton: AsfSkeleton, values: np.ndarray, degrees: bool = T
         for k, dof in enumerate(dofs):
             if dof.startswith("r"):
                 angles[:, "xyz".index(dof[1])] = values[:, starts[b] + k] * scale
-        c = _axis_quat(skeleton.axes[b] * axes_scale, skeleton.axis_orders[b])
+        c = _axis_quat(skeleton.axes[b], skeleton.axis_orders[b])  # axes are radians
         m = _axis_quat(angles, _applied_order(dofs))
-        rotations[:, j] = quat_mul(quat_mul(np.broadcast_to(c, m.shape), m), np.broadcast_to(quat_conjugate(c), m.shape))
+        c_frames = np.broadcast_to(c, m.shape)
+        rotations[:, j] = quat_mul(quat_mul(c_frames, m), quat_conjugate(c_frames))
     channels = tuple(() if b < 0 else ROOT_CHANNELS if b == 0 else JOINT_CHANNELS for b in bone_of)
     rotations.setflags(write=False)
     root_translation = skeleton.root_position + translation

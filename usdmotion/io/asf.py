@@ -296,7 +296,7 @@ def parse_asf(text: str, path: str | os.PathLike | None = None) -> AsfSkeleton:
     for i, name in enumerate(order[1:], start=1):
         bone = bones[name]
         directions[i] = bone["direction"]
-        lengths[i] = bone["length"] * 1.0
+        lengths[i] = bone["length"]
         axes[i] = bone.get("axis", np.zeros(3))
         axis_orders.append(bone.get("order", "XYZ"))
         dofs.append(bone.get("dofs", ()))

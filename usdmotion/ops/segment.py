@@ -343,7 +343,9 @@ def cut_confidence(x: np.ndarray, cuts: np.ndarray, penalty: float, min_size: in
         off = np.flatnonzero(~near)
         left = off[off < at]
         right = off[off > at]
-        regions[k] = (a + 1 + (left[-1] + 1 if left.size else 0), a + 1 + (right[0] - 1 if right.size else near.size - 1))
+        first = left[-1] + 1 if left.size else 0
+        last = right[0] - 1 if right.size else near.size - 1
+        regions[k] = (a + 1 + first, a + 1 + last)
     return confidence, regions
 
 
