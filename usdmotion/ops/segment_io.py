@@ -37,8 +37,7 @@ def plot_segmentation(seg: Segmentation, path: str | os.PathLike, title: str = "
                       highlight: int | None = None) -> Path:
     """PNG/SVG/PDF: the norm signal, its low-passed version, the paper's candidates, the cuts
     (dashed; low-confidence cuts dotted purple) over shaded segments; below, the bone energy the
-    cuts settle on, and the eight
-    bone angles."""
+    cuts settle on, and the eight bone angles."""
     import matplotlib
 
     matplotlib.use("Agg")
