@@ -25,8 +25,8 @@ Penalty = Annotated[float | None, typer.Option(
          "take's length, no labels needed).", show_default=False)]
 MinLength = Annotated[float, typer.Option(help="kcpd: shortest segment, seconds.")]
 Refine = Annotated[bool, typer.Option(
-    "--refine/--no-refine", help="kcpd: move each cut to the nearest local minimum of the bone energy "
-                                 "(where the body moves least), at most 0.5 s.")]
+    "--refine/--no-refine", help="kcpd: move each cut to the quietest frame (least bone energy) of its own "
+                                 "change region.")]
 Roles = Annotated[list[str] | None, typer.Option(
     "--role", help="Name a role's joint, e.g. --role chest=Spine2 (repeatable). Roles: root, chest, "
                    "left_/right_ shoulder, elbow, wrist, hip, knee, ankle.", show_default=False)]

@@ -426,6 +426,30 @@ def refine_to_rest(energy: np.ndarray, cuts: np.ndarray, fps: float,
     return out
 
 
+def quietest_in_region(energy: np.ndarray, cuts: np.ndarray, regions: np.ndarray) -> np.ndarray:
+    """Move each cut to the frame of least bone energy in its own change region.
+
+    The detector says *which* change happened and, through the region, *where it could be*; within
+    that span people cut where the body moves least (Fod, Matarić & Jenkins 2002). Each cut also
+    stays short of the midpoint to its neighbours, so cuts keep their order.
+
+    Args:
+        energy: ``(F,)`` the bone energy (:func:`bone_energy`).
+        cuts: ``(K,)`` sorted frame indices in ``1 .. F-1``.
+        regions: ``(K, 2)`` inclusive frame range of each cut's change region (contains the cut).
+    Returns:
+        ``(K,)`` strictly increasing frame indices in ``1 .. F-1``.
+    """
+    cuts = np.asarray(cuts, np.int64)
+    n = energy.shape[0]
+    if cuts.size == 0:
+        return cuts
+    bounds = np.concatenate([[0], cuts, [n]])
+    lows = np.minimum(np.maximum(np.maximum(regions[:, 0], (bounds[:-2] + cuts) // 2 + 1), 1), cuts)
+    highs = np.maximum(np.minimum(np.minimum(regions[:, 1], (cuts + bounds[2:] - 1) // 2), n - 1), cuts)
+    return np.array([lo + int(np.argmin(energy[lo:hi + 1])) for lo, hi in zip(lows, highs)], np.int64)  # per cut
+
+
 # --------------------------------------------------------------------------- driver
 
 
@@ -454,8 +478,8 @@ def segment(motion: Motion, method: str = DEFAULT_METHOD, param: float = DEFAULT
             (:func:`penalty_for_length`, ``N`` = samples at 10 Hz).
         min_length_s: kcpd shortest segment, seconds.
         speed_weight: kcpd weight (seconds) of the angular speeds against the angles.
-        refine: kcpd: move each cut to the nearest local minimum of the bone energy
-            (:func:`refine_to_rest`, at most 0.5 s), never out of its change region.
+        refine: kcpd: move each cut to the quietest frame (least bone energy) of its own
+            change region (:func:`quietest_in_region`).
         roles: ``{role: joint name}`` overrides for the role map.
         preset: force a role preset (:data:`~usdmotion.ops.roles.PRESET_NAMES`).
         source: file name for messages.
@@ -507,14 +531,14 @@ def segment(motion: Motion, method: str = DEFAULT_METHOD, param: float = DEFAULT
                   "refine": refine}
         params = {k: v for k, v in params.items() if v is not None}
         if refine:
-            params |= {"rest_smooth_s": DEFAULT_REST_SMOOTH_S, "rest_reach_s": DEFAULT_REST_REACH_S}
+            params |= {"rest_smooth_s": DEFAULT_REST_SMOOTH_S}
     keep = (cuts > 0) & (cuts < motion.n_frames)
     cuts, first = np.unique(cuts[keep], return_index=True)
     if confidence is not None:
         confidence = confidence[keep][first]
         regions = np.clip(regions[keep][first], 1, motion.n_frames - 1)
         if refine:
-            cuts = refine_to_rest(energy, cuts, motion.fps, regions=regions)
+            cuts = quietest_in_region(energy, cuts, regions)
     names = {r: motion.joint_names[j] for r, j in role_index.items()}
     return Segmentation(cuts=cuts, n_frames=motion.n_frames, fps=motion.fps, method=method, params=params,
                         angles=angles, signal=q, filtered=filtered, candidates=candidates,
