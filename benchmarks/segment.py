@@ -195,7 +195,7 @@ def heuristic_grid(takes: dict, labels: dict) -> list:
 
 
 def kcpd_grid(takes: dict, labels: dict) -> dict:
-    print("\n3. kcpd penalty scale × speed weight (paper features, IN-SAMPLE, all takes, tolerance 0.5 s)")
+    print("\n3. kcpd penalty scale × speed weight (shipped features, IN-SAMPLE, all takes, tolerance 0.5 s)")
     scales, weights = (0.5, 0.75, 1.0, 1.25, 1.5, 2.0), (0.0, 0.25, 0.5, 1.0)
     print(f"{'pen×lnN':>8}  " + "  ".join(f"{f'w={w:g}':>11}" for w in weights))
     table = []

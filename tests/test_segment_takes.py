@@ -24,7 +24,7 @@ REPORTED = {
     "86_01": ("cmu86/86_01.amc", "cmu86/groundtruth86.json", 6, 6),
     "14_14": ("cmu14/max_14_14_exercise_routine.bvh", "cmu14/14_14_segments.csv", 5, 5),
     "13_29": ("mocap6/13_29.amc", "mocap6/13_29_segments.csv", 5, 5),
-    "13_30": ("mocap6/13_30.amc", "mocap6/13_30_segments.csv", 3, 4),
+    "13_30": ("mocap6/13_30.amc", "mocap6/13_30_segments.csv", 4, 4),
 }
 
 

@@ -148,7 +148,12 @@ def role_positions(motion: Motion, roles: Mapping[str, int]) -> dict[str, np.nda
     remap = np.full(motion.n_joints, -1)
     remap[keep] = np.arange(keep.size)
     sub_parents = np.where(motion.parents[keep] >= 0, remap[motion.parents[keep]], -1)
-    _, world = fk_arrays(motion.rotations[:, keep], local_translations(motion)[:, keep], sub_parents)
+    if motion.joint_translations is None:  # only the kept joints' translations, not all J
+        translations = np.broadcast_to(motion.offsets[keep], (motion.n_frames, keep.size, 3)).copy()
+        translations[:, 0] = motion.root_translation                     # keep[0] is the root
+    else:
+        translations = local_translations(motion)[:, keep]
+    _, world = fk_arrays(motion.rotations[:, keep], translations, sub_parents)
     return {role: world[:, remap[j]] for role, j in roles.items()}
 
 
