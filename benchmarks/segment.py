@@ -11,7 +11,7 @@ Prints tables and writes ``benchmarks/results/segment.json``:
    settings), the paper's heuristic (cut-off × swing ratio) and PPCA (Barbič et al. 2004,
    ``benchmarks/segment_ppca.py``; window × threshold). Rule: a cut counts when it falls inside
    a labelled transition band widened to ±0.5 s, one-to-one matching
-   (``usdmotion.ops.segment_eval``). Beside it, marked *in-sample*: each detector's best single
+   (``usdmotion.ops.segment.evaluate``). Beside it, marked *in-sample*: each detector's best single
    setting on all four takes, and the shipped defaults (chosen on all four takes);
 1. precision / recall of the paper's heuristic and of kcpd with the shipped defaults on every
    labelled take (in-sample), tolerances 0.25 / 0.5 / 1.0 s; and kcpd without the move to the
@@ -53,8 +53,8 @@ sys.path.insert(0, str(REPO))
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # segment_ppca
 
 from usdmotion.io import read_motion  # noqa: E402
-from usdmotion.ops import segment as S  # noqa: E402
-from usdmotion.ops.segment_eval import Score, load_labels, reordered_take, score_cuts, synthetic_take  # noqa: E402
+from usdmotion.ops.segment import detect as S  # noqa: E402
+from usdmotion.ops.segment.evaluate import Score, load_labels, reordered_take, score_cuts, synthetic_take  # noqa: E402
 
 PAPER = {"heuristic": {"precision": 0.849, "recall": 0.975, "time_per_clip_s": 2.4},
          "ppca": {"precision": 0.915, "recall": 0.932, "time_per_clip_s": 10.0}}
@@ -88,7 +88,8 @@ ZERO = Score(0, 0, 0, 0, ())
 
 def read_take(data: Path, name: str):
     """The motion of a labelled take (AMC takes on subject 86's skeleton)."""
-    return read_motion(data / TAKES[name][0], skeleton=data / SKELETON)
+    path = data / TAKES[name][0]
+    return read_motion(path, skeleton=data / SKELETON if path.suffix == ".amc" else None)
 
 
 def detect(detector: str, motion, setting: dict) -> np.ndarray:

@@ -13,7 +13,8 @@ from usdmotion.errors import InputError
 from usdmotion.io import read_motion
 from usdmotion.io.amc import AmcParseError, read_amc
 from usdmotion.io.asf import AsfParseError, read_asf
-from usdmotion.io.bvh import channel_values, read_bvh
+from usdmotion.io.bvh import read_bvh
+from usdmotion.io.bvh_write import channel_values
 from usdmotion.kinematics import joint_positions, skeleton_height
 from usdmotion.rotations import euler_to_quat, quat_mul, quat_rotate
 
@@ -268,3 +269,22 @@ def test_valid_minimal_pair_reads(tmp_path):
     positions = joint_positions(motion)
     assert np.allclose(np.linalg.norm(positions[:, 2] - positions[:, 1], axis=-1), 7.5)
     assert np.allclose(np.linalg.norm(positions[:, 3] - positions[:, 2], axis=-1), 7.0)
+
+
+def test_cli_convert_amc_with_skeleton_option(shared_file, tmp_path, capsys):
+    """``usdmotion convert 13_29.amc 13_29.bvh --skeleton 86.asf`` (subject 86's skeleton as a proxy):
+    the BVH re-reads to the same world positions as the library's AMC reading."""
+    amc, asf = shared_file("mocap6/13_29.amc"), shared_file("cmu86/86.asf")
+    out = tmp_path / "13_29.bvh"
+    assert main(["convert", str(amc), str(out), "--skeleton", str(asf)]) == 0, capsys.readouterr().err
+    assert "4592 frames at 120 fps" in capsys.readouterr().out
+    ours = read_motion(amc, skeleton=asf)
+    back = read_bvh(out, units="asf")
+    assert back.n_frames == ours.n_frames == 4592 and back.joint_names == ours.joint_names
+    error = np.linalg.norm(joint_positions(back) - joint_positions(ours), axis=-1)
+    assert error.max() <= 1e-6 * skeleton_height(ours)
+    # Without the option and without an .asf beside it: one line, exit 2, nothing written.
+    out.unlink()
+    assert main(["convert", str(amc), str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no skeleton: pass --skeleton FILE.asf" in err[0] and not out.exists()

@@ -253,7 +253,7 @@ def read_amc(path: str | os.PathLike, skeleton: str | os.PathLike | AsfSkeleton 
     values, degrees = parse_amc(text, skeleton, path)
     meters = None
     if units is not None:
-        from usdmotion.io.bvh import resolve_units
+        from usdmotion.channels import resolve_units
 
         meters = resolve_units(units)
     return motion_from_amc(skeleton, values, degrees=degrees, fps=fps, layout=layout, meters_per_unit=meters)
