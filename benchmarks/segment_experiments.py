@@ -6,7 +6,7 @@ Prints one table and writes ``benchmarks/results/segment_experiments.json``. The
 variants of kernel change-point detection that were tried to recover its one miss (the 86_01
 walk → leg-kick cut); one of them, ``kcpd+descent`` (each cut moved downhill on the bone energy
 to the nearest local minimum, ``usdmotion.ops.segment.detect.refine_to_rest``), was what ``usdmotion``
-ships; ``kcpd`` is the detector alone (``segment(..., refine=False)``). All scored with one
+shipped; ``kcpd`` is the detector alone (``segment(..., refine=False)``). All scored with one
 protocol:
 
 * **default**: the variant with settings fixed *before* looking at its scores (the middle of its
