@@ -26,15 +26,28 @@ _PANELS = {
 }
 
 
-def _load_commands() -> None:
+def _command_modules() -> list[str]:
+    """The command modules' names, in help order."""
     names = [m.name for m in pkgutil.iter_modules(__path__) if not m.name.startswith("_") and m.name != "app"]
-    names.sort(key=lambda n: (_COMMAND_ORDER.index(n) if n in _COMMAND_ORDER else len(_COMMAND_ORDER), n))
-    for name in names:
+    return sorted(names, key=lambda n: (_COMMAND_ORDER.index(n) if n in _COMMAND_ORDER else len(_COMMAND_ORDER), n))
+
+
+def _load_commands(argv: list[str] | None = None) -> None:
+    """Import the command modules: only the invoked one where ``argv`` names one (start-up is
+    the user's time: ``usdmotion info`` need not import the renderer's or retargeter's CLI),
+    none for ``--version`` alone, else all of them (``argv`` None, ``--help``, an unknown command)."""
+    names = _command_modules()
+    invoked = next((a for a in argv or () if not a.startswith("-")), None)
+    module = invoked.replace("-", "_") if invoked else None
+    version_only = invoked is None and argv is not None and "--version" in argv
+    for name in [] if version_only else [module] if module in names else names:
         importlib.import_module(f"{__name__}.{name}")
+    order = {f"{__name__}.{name}": i for i, name in enumerate(names)}
+    app.registered_commands.sort(key=lambda info: order.get(getattr(info.callback, "__module__", ""), len(order)))
     for info in app.registered_commands:
-        module = info.callback.__module__.rsplit(".", 1)[-1] if info.callback else ""
+        module_name = info.callback.__module__.rsplit(".", 1)[-1] if info.callback else ""
         if not isinstance(info.rich_help_panel, str):  # typer's unset default is a placeholder
-            info.rich_help_panel = _PANELS.get(module, "Edit")
+            info.rich_help_panel = _PANELS.get(module_name, "Edit")
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
@@ -52,7 +65,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from usdmotion.errors import UsdMotionError
 
-    _load_commands()
+    _load_commands(sys.argv[1:] if argv is None else argv)
     debug = bool(os.environ.get("USDMOTION_DEBUG"))
     previous = warnings.showwarning
     warnings.showwarning = _show_warning

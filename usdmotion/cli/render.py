@@ -51,7 +51,7 @@ def render(
                             labels=(source.name, compare.name if compare else ""))
     total = len(output_frames(motion, options)[0])
     with progress(f"rendering {output.name}", total=total, unit="frames") as update:
-        result = render_motion(motion, output, options, other, progress=lambda n: update(n))
+        result = render_motion(motion, output, options, other, progress=update)
     t = result.timings
     typer.echo(f"wrote {output}: {result.frames} frames {width}x{height} in {result.seconds:.1f} s "
                f"({result.fps:.1f} frames/s; body {t.get('build', 0):.1f} s, skinning {t.get('skin', 0):.1f} s, "

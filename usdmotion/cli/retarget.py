@@ -87,5 +87,5 @@ def retarget(
     with progress("retargeting", total=motion.n_frames, unit="frames") as update:
         line = retarget_files(motion, source, output, target_motion, target, _names(remove), add or [], map_file,
                               method.value, iterations, lengths.value, directions.value, scale, init.value, local,
-                              report, lambda n: update(advance=n))
+                              report, update)
     typer.echo(line)

@@ -152,7 +152,8 @@ def render_motion(motion: Motion, output: str | Path, options: RenderOptions = R
                   other: Motion | None = None, progress=None) -> RenderResult:
     """Render ``motion`` (and ``other``, compared) to ``output`` (``.mp4`` or ``dir/####.png``).
 
-    ``progress``: optional ``update(advance=…)`` callable, called once per frame.
+    ``progress``: optional :class:`usdmotion.progress.Progress`, called ``(frames done, total, message)``
+    once per frame.
     Nothing is left at ``output`` if anything fails.
     """
     from usdmotion.render.output import WriterThread, check_output, open_writer

@@ -408,7 +408,8 @@ def retarget(source: Motion, target: Motion | None = None, *, remove=(), add=(),
         init: ``"auto"``, ``"copy"``, ``"compose"`` (derived rigs) or ``"aim"``.
         local: optimise only joints around changed bones (derived rigs).
         source_path, target_path: file names for messages and the report.
-        progress: optional ``callable(frames_done)`` called after every chunk.
+        progress: optional :class:`usdmotion.progress.Progress` ``(frames done, n_frames, message)``,
+            called after every chunk.
 
     Returns:
         :class:`RetargetResult` with the new motion (target skeleton, channel layout,

@@ -387,7 +387,8 @@ def solve(problem: Problem, q0: np.ndarray, t0: np.ndarray, targets: np.ndarray,
         iterations: LM's maximum (default 100; it stops when converged) or Adam's count (500).
         chunk: frames per compiled call (default :func:`chunk_plan`).
         lr: Adam's learning rate.
-        progress: optional ``callable(frames_done)``.
+        progress: optional :class:`usdmotion.progress.Progress`, called ``(frames done, n_frames, message)``
+            after every chunk.
     """
 
     import jax
@@ -420,7 +421,7 @@ def solve(problem: Problem, q0: np.ndarray, t0: np.ndarray, targets: np.ndarray,
         ran = max(ran, int(result[4]))
         calls += 1
         if progress is not None:
-            progress(stop - start)
+            progress(stop, n_frames, "retargeting")
     q, t, loss, initial = (np.concatenate(parts) for parts in zip(*outs))
     q /= np.linalg.norm(q, axis=-1, keepdims=True)
     return Solution(q, t, loss, initial, compile_s, run_s, chunk, calls, ran)
