@@ -7,8 +7,12 @@ import json
 from pathlib import Path
 
 from usdmotion.errors import OutputError
+from usdmotion.io import BVH_EXTENSIONS, USD_EXTENSIONS, write_motion
+from usdmotion.io.atomic import atomic_output
 from usdmotion.motion import Motion
 from usdmotion.ops.retarget.hierarchy import RetargetError, parse_add
+from usdmotion.ops.retarget.jointmap import load_joint_map
+from usdmotion.ops.retarget.pipeline import retarget
 
 
 def parse_scale(text) -> str | float:
@@ -36,11 +40,6 @@ def retarget_files(source: Motion, source_path: Path, output: Path, target: Moti
 
     Nothing is written when anything fails (checks run before the optimiser).
     """
-    from usdmotion.io import BVH_EXTENSIONS, USD_EXTENSIONS, write_motion
-    from usdmotion.io.atomic import atomic_output
-    from usdmotion.ops.retarget.jointmap import load_joint_map
-    from usdmotion.ops.retarget.pipeline import retarget
-
     output = Path(output)
     if output.suffix.lower() not in BVH_EXTENSIONS + USD_EXTENSIONS:
         raise OutputError(f"{output}: unknown output format {output.suffix!r} (use .bvh, {', '.join(USD_EXTENSIONS)})")
