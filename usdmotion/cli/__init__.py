@@ -4,6 +4,12 @@ Each public module of this package defines one command on :data:`app`; they are
 imported here (sorted by name), so adding a command means adding a module. ``main``
 turns every input error into one line on stderr and exit code 2 (no traceback); set
 ``USDMOTION_DEBUG=1`` to see tracebacks.
+
+Only the invoked command's module is imported (all of them for ``--help``). Command modules
+import the library (``usdmotion.io``, ``ops``, ``render``: NumPy, pyarrow, pxr, JAX, ...)
+inside the command function, deliberately: ``usdmotion --help`` imports every command module
+and must stay fast (``tests/test_startup.py``); light modules (errors, options, progress)
+are imported at the top.
 """
 
 from __future__ import annotations
@@ -15,6 +21,7 @@ import sys
 import warnings
 
 from usdmotion.cli.app import app
+from usdmotion.errors import UsdMotionError
 
 _COMMAND_ORDER = ("convert", "info", "positions")
 #: Help panels by command module (``usdmotion --help`` groups commands by what they are for).
@@ -62,8 +69,6 @@ def _error(message: str) -> None:
 def main(argv: list[str] | None = None) -> int:
     """Run the CLI; returns the exit code (0 ok, 1 checks failed / internal error, 2 bad input)."""
     import typer
-
-    from usdmotion.errors import UsdMotionError
 
     _load_commands(sys.argv[1:] if argv is None else argv)
     debug = bool(os.environ.get("USDMOTION_DEBUG"))

@@ -8,6 +8,7 @@ from typing import Annotated
 import typer
 
 from usdmotion.cli._options import InputPath, ReadOptions, parse_start_stop, reads_motion
+from usdmotion.cli._progress import progress
 from usdmotion.cli.app import app
 
 Opt = typer.Option
@@ -38,7 +39,6 @@ def render(
     read: ReadOptions = ReadOptions(),
 ) -> None:
     """Render a motion offscreen to a video or image sequence (skinned body, stick figure)."""
-    from usdmotion.cli._progress import progress
     from usdmotion.render import RenderOptions, output_frames, render_motion
 
     width, height = _size(size)
