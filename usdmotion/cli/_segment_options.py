@@ -11,6 +11,7 @@ from typing import Annotated
 import typer
 
 from usdmotion.cli._options import option_group
+from usdmotion.cli._progress import progress
 
 
 class MethodChoice(str, Enum):
@@ -53,7 +54,6 @@ class DetectorOptions:
     def run(self, motion, source: Path, method: MethodChoice):
         """Find roles and cut ``motion`` with ``method`` (errors name ``source``)."""
         # Deferred so that loading the CLI does not import NumPy.
-        from usdmotion.cli._progress import progress
         from usdmotion.ops.segment.detect import segment
         from usdmotion.ops.segment.roles import parse_role_overrides
 

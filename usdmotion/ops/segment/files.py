@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from usdmotion.errors import OutputError
+from usdmotion.io import write_motion
 from usdmotion.io.atomic import atomic_output
 from usdmotion.motion import Motion
 from usdmotion.ops.segment.roles import LIMB_BONES
@@ -95,8 +96,6 @@ def clip_paths(seg: Segmentation, folder: Path, stem: str, fmt: str, indices: Se
 def export_clips(motion: Motion, seg: Segmentation, folder: str | os.PathLike, fmt: str = "bvh",
                  stem: str = "clip", indices: Sequence[int] | None = None) -> list[Path]:
     """Write one motion file per segment (or per segment in ``indices``); returns the paths."""
-    from usdmotion.io import write_motion
-
     if fmt not in CLIP_FORMATS:
         raise OutputError(f"unknown clip format {fmt!r} (use {', '.join(CLIP_FORMATS)})")
     folder = Path(folder)
