@@ -9,6 +9,7 @@ from typing import Annotated
 import typer
 
 from usdmotion.cli._options import InputPath, ReadOptions, reads_motion
+from usdmotion.cli._progress import progress
 from usdmotion.cli.app import app
 
 
@@ -26,7 +27,6 @@ def convert(
     read: ReadOptions = ReadOptions(),
 ) -> None:
     """Convert a motion between BVH, OpenUSD (UsdSkel) and glTF 2.0 (GLB)."""
-    from usdmotion.cli._progress import progress
     from usdmotion.io.convert import check_convert_paths, convert_motion
 
     check_convert_paths(source, output, mesh)
