@@ -63,7 +63,7 @@ class Library:
                     if name.lower().endswith(MOTION_EXTENSIONS) and not name.startswith("."):
                         entry = self._entry(index, (rel / name).as_posix())
                         entries += [entry] if entry else []
-        return entries
+        return sorted(entries, key=lambda e: e.id)
 
     def resolve(self, take_id: str) -> Entry | None:
         """The entry of ``take_id`` if it names a motion file inside its root, else ``None``."""

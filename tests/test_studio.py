@@ -1,0 +1,118 @@
+"""Studio server: library listing and errors, safety (roots only, bounded requests), and that
+every number it serves is the library's (FK, analysis, DTW alignment, spatial alignment)."""
+
+from __future__ import annotations
+
+import json
+from urllib.parse import quote
+
+import numpy as np
+import pytest
+
+from studio_support import MOVE, SHIFT, TURN_DEG, WALK, make_library, raw_get, running_studio
+from usdmotion.io import read_motion
+from usdmotion.kinematics import joint_positions
+
+
+@pytest.fixture(scope="module")
+def studio(tmp_path_factory):
+    lib = make_library(tmp_path_factory.mktemp("studio"))
+    with running_studio([lib]) as base:
+        yield base, lib
+
+
+def get_json(base, target):
+    status, body = raw_get(base, target)
+    return status, json.loads(body) if body else None
+
+
+def test_library_lists_takes_and_the_malformed_file_with_its_error(studio):
+    base, lib = studio
+    status, listing = get_json(base, "/api/takes")
+    assert status == 200
+    ids = [t["id"] for t in listing["takes"]]
+    assert ids == ["0/broken.bvh", "0/session2/walk_turned.usda", "0/walk.bvh"]  # the symlink out is not listed
+    _, meta = get_json(base, "/api/meta?" + "&".join(f"id={quote(i)}" for i in ids))
+    walk = read_motion(WALK, units="asf")
+    assert meta["meta"]["0/walk.bvh"] == {"joints": 31, "frames": walk.n_frames, "fps": walk.fps,
+                                          "duration_s": pytest.approx(walk.duration), "rig": "cmu_cgspeed",
+                                          "height_m": pytest.approx(1.4258, abs=1e-3)}
+    assert meta["meta"]["0/session2/walk_turned.usda"]["frames"] == walk.n_frames - SHIFT
+    assert meta["meta"]["0/broken.bvh"] == {"error": "broken.bvh:4:3: OFFSET has 2 values, expected 3"}
+    # the server keeps answering after the bad file
+    assert get_json(base, "/api/skeleton?take=0/broken.bvh") == (422, {"error": meta["meta"]["0/broken.bvh"]["error"]})
+    assert get_json(base, "/api/takes")[0] == 200
+
+
+@pytest.mark.parametrize("target", [
+    "/api/skeleton?take=0/../../outside.bvh", "/api/skeleton?take=0/escape.bvh",
+    "/api/skeleton?take=/etc/passwd", "/api/skeleton?take=0//etc/passwd", "/api/skeleton?take=1/walk.bvh",
+    "/api/positions?take=0/%2e%2e/outside.bvh", "/api/glb?take=0/./walk.bvh", "/api/skeleton?take=0/nothing.bvh",
+    "/app/../../../pyproject.toml", "/vendor/three/../../package.json", "/app/%2e%2e/app.py", "/etc/passwd",
+    "/api/compare?a=0/walk.bvh&b=0/escape.bvh",
+])
+def test_outside_the_roots_is_not_found(studio, target):
+    status, _ = raw_get(studio[0], target)
+    assert status == 404
+
+
+def test_requests_are_read_only_and_bounded(studio):
+    import http.client
+    from urllib.parse import urlsplit
+
+    url = urlsplit(studio[0])
+    conn = http.client.HTTPConnection(url.hostname, url.port, timeout=30)
+    conn.request("POST", "/api/takes", body=b"x" * 10)
+    assert conn.getresponse().status == 405
+    conn.close()
+    many = "&".join(f"id=0/t{i}.bvh" for i in range(201))
+    assert raw_get(studio[0], "/api/meta?" + many)[0] == 413
+
+
+def test_positions_are_the_library_fk_in_metres(studio):
+    base, lib = studio
+    status, body = raw_get(base, "/api/positions?take=0/walk.bvh")
+    walk = read_motion(lib / "walk.bvh", units="asf")
+    served = np.frombuffer(body, dtype=np.float32).reshape(walk.n_frames, walk.n_joints, 3)
+    np.testing.assert_allclose(served, joint_positions(walk) * walk.meters_per_unit, atol=1e-5)
+
+
+def test_series_are_the_analysis_module(studio):
+    from usdmotion.anthropometry import body_model
+    from usdmotion.ops.analyse import analyse
+
+    base, lib = studio
+    _, s = get_json(base, "/api/series?take=0/walk.bvh&joints=LeftLeg,RightUpLeg&q=bend,speed,com_height")
+    walk = read_motion(lib / "walk.bvh", units="asf")
+    kin = analyse(walk, body=body_model(walk))
+    j = walk.joint_index("LeftLeg")
+    by_label = {x["label"]: np.array(x["values"], dtype=float) for x in s["series"]}
+    assert [x["unit"] for x in s["series"]] == ["deg", "deg", "m/s", "m/s", "m"]
+    np.testing.assert_allclose(by_label["LeftLeg joint angle"], kin.bend[:, j], atol=1e-4)
+    np.testing.assert_allclose(by_label["LeftLeg joint speed"], np.linalg.norm(kin.velocities[:, j], axis=1), atol=1e-4)
+    np.testing.assert_allclose(by_label["centre-of-mass height"], kin.com[:, 1], atol=1e-4)
+    assert 0.7 < np.nanmean(by_label["centre-of-mass height"]) < 1.0  # metres, a walking adult
+    assert get_json(base, "/api/series?take=0/walk.bvh&joints=Nope")[0] == 400
+
+
+def test_compare_finds_the_shift_in_time_and_undoes_the_turn(studio):
+    base, lib = studio
+    _, answer = get_json(base, "/api/compare?a=0/session2/walk_turned.usda&b=0/walk.bvh&mode=dtw&frame=100")
+    frame_map = np.array(answer["map"])
+    inner = frame_map[20:-20]  # DTW's ends are open
+    assert np.median(np.abs(inner - (np.arange(len(frame_map)) + SHIFT)[20:-20])) <= 1.0
+    # spatial: the walk moved by the alignment matrix lands on the turned take, all joints, at the aligned frame
+    a = read_motion(lib / "session2" / "walk_turned.usda")
+    b = read_motion(lib / "walk.bvh", units="asf")
+    m = np.array(answer["align"])
+    fb = int(round(frame_map[100]))
+    pb = joint_positions(b)[fb] * b.meters_per_unit
+    pa = joint_positions(a)[100] * a.meters_per_unit
+    moved = pb @ m[:3, :3].T + m[:3, 3]
+    # heading is smoothed over 0.5 s, so allow a few degrees and centimetres
+    assert np.abs(moved - pa)[:, [0, 2]].max() < 0.06
+    turn = np.degrees(np.arctan2(m[0, 2], m[0, 0]))
+    assert abs(abs(turn) - TURN_DEG) < 5.0
+    _, manual = get_json(base, "/api/compare?a=0/walk.bvh&b=0/session2/walk_turned.usda&mode=offset&offset=0.5")
+    np.testing.assert_allclose(manual["map"][60:70], np.arange(60, 70) - 0.5 * 120, atol=1e-6)
+    assert MOVE  # the move is part of the fixture; the alignment absorbs it
