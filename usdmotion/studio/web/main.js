@@ -52,9 +52,8 @@ const player = new Player($('canvas'), frame => {
   if (!player.playing) writeUrl();
 });
 player.onStop = () => { $('play').textContent = '▶'; writeUrl(); };
-player.onCamera = () => { if (player.cameraMode !== 'orbit' && player.cameraMode !== 'follow') {
-  player.cameraMode = 'orbit'; $('camera').value = 'orbit'; }
-  clearTimeout(player.urlTimer); player.urlTimer = setTimeout(writeUrl, 300); };
+player.onOrbit = () => { player.cameraMode = 'orbit'; $('camera').value = 'orbit'; };
+player.onCamera = () => { clearTimeout(player.urlTimer); player.urlTimer = setTimeout(writeUrl, 300); };
 const plots = new Plots($('plots'), t => player.setFrame(Math.round(t * player.fps)));
 const library = new LibraryView($('takes'), $('filter'), $('library-status'), id => openTake(id, true));
 
@@ -159,10 +158,12 @@ async function openCompare() {
     ghostMap = answer.map;
     const ghost = player.setGhost(ghostTake, ghostMap);
     if (state.space === 'root') player.placeGhost(answer.align);
-    if (state.space === 'side') {
-      const d = player.extent.direction;
-      const s = Math.max(1, player.extent.height * 0.7);
-      player.placeGhost([[1, 0, 0, d.z * s], [0, 1, 0, 0], [0, 0, 1, -d.x * s], [0, 0, 0, 1]]);
+    if (state.space === 'side') {  // aligned, then beside the take (perpendicular to its travel)
+      const d = player.extent.direction, s = Math.max(1, player.extent.height * 0.7);
+      const m = answer.align.map(row => [...row]);
+      m[0][3] += d.z * s;
+      m[2][3] -= d.x * s;
+      player.placeGhost(m);
     }
     $('compare-status').textContent = `${ghostTake.id.split('/').slice(1).join('/')}: ` +
       (state.align === 'dtw' ? 'aligned in time by DTW' : `offset ${state.offset} s`);

@@ -20,6 +20,8 @@ export class Player {
     this.scene.add(this.grid);
     this.camera = new THREE.PerspectiveCamera(35, 16 / 9, 0.05, 200);
     this.controls = new OrbitControls(this.camera, canvas);
+    // 'start' is a user's drag or wheel (not a preset's update): from then on the camera is 'orbit'
+    this.controls.addEventListener('start', () => { if (this.onOrbit) this.onOrbit(); });
     this.controls.addEventListener('change', () => { this.dirty = true; if (this.onCamera) this.onCamera(); });
     this.figure = null;
     this.ghost = null;
@@ -174,7 +176,7 @@ export class Player {
 
   setGhost(take, frameMap) {
     this.clearGhost();
-    this.ghost = new Figure(take, {color: 0xd07020, opacity: 0.45});
+    this.ghost = new Figure(take, {color: 0xd07020, opacity: 0.7});
     this.ghostMap = frameMap;
     this.scene.add(this.ghost.group);
     this.setFrame(this.frame);

@@ -36,7 +36,7 @@ export class Plots {
       this.container.append(div);
       const opts = {
         width, height: 150,
-        cursor: {drag: {x: false, y: false}, points: {show: false}},
+        cursor: {x: false, y: false, drag: {x: false, y: false}, points: {show: false}},
         scales: {x: {time: false}},
         axes: [{label: 's'}, {label: unit, size: 60}],
         series: [{label: 'time (s)'}, ...series.map(s => ({label: `${s.label} (${s.unit})`, stroke: s.color,
