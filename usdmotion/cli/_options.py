@@ -20,7 +20,7 @@ class UpAxisChoice(str, Enum):
     Z = "Z"
 
 
-InputPath = Annotated[Path, typer.Argument(help="Input motion: .bvh, .usd, .usda, .usdc or .usdz.",
+InputPath = Annotated[Path, typer.Argument(help="Input motion: .bvh, .usd, .usda, .usdc, .usdz, .glb or .gltf.",
                                            show_default=False)]
 Units = Annotated[str | None, typer.Option(
     "--units", help="Length unit of a BVH file: cm, m, mm, in, ft, asf (CMU, 1/0.45 in), or metres per "
@@ -57,7 +57,7 @@ def parse_start_stop(text: str | None) -> tuple[int | None, int | None]:
 
 def read_input(path: Path, units: str | None, up_axis: UpAxisChoice | None,
                root_offset: RootOffsetChoice = RootOffsetChoice.auto, lenient: bool = False,
-               ignore_joint_positions: bool = False):
+               ignore_joint_positions: bool = False, skin: int | None = None):
     """Read a motion with the shared CLI options (progress shown for slow files)."""
     from usdmotion.cli._progress import progress
     from usdmotion.io import read_motion
@@ -65,4 +65,4 @@ def read_input(path: Path, units: str | None, up_axis: UpAxisChoice | None,
     with progress(f"reading {path.name}"):
         return read_motion(path, root_offset=root_offset.value, units=units,
                            up_axis=None if up_axis is None else up_axis.value, lenient=lenient,
-                           ignore_joint_positions=ignore_joint_positions)
+                           ignore_joint_positions=ignore_joint_positions, skin=skin)
