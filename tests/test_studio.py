@@ -16,8 +16,9 @@ from usdmotion.kinematics import joint_positions
 
 @pytest.fixture(scope="module")
 def studio(tmp_path_factory):
-    lib = make_library(tmp_path_factory.mktemp("studio"))
-    with running_studio([lib]) as base:
+    folder = tmp_path_factory.mktemp("studio")
+    lib = make_library(folder)
+    with running_studio([lib], out=folder / "out") as base:
         yield base, lib
 
 
@@ -116,3 +117,16 @@ def test_compare_finds_the_shift_in_time_and_undoes_the_turn(studio):
     _, manual = get_json(base, "/api/compare?a=0/walk.bvh&b=0/session2/walk_turned.usda&mode=offset&offset=0.5")
     np.testing.assert_allclose(manual["map"][60:70], np.arange(60, 70) - 0.5 * 120, atol=1e-6)
     assert MOVE  # the move is part of the fixture; the alignment absorbs it
+
+
+def test_glb_is_the_writers_body_and_is_cached_only_in_the_output_folder(studio):
+    from usdmotion.io.gltf import glb_bytes
+
+    base, lib = studio
+    before = sorted(p for p in lib.parent.rglob("*") if p.is_file())
+    status, first = raw_get(base, "/api/glb?take=0/walk.bvh")
+    assert status == 200 and first[:4] == b"glTF"
+    assert first == glb_bytes(read_motion(lib / "walk.bvh", units="asf"), mesh=True)
+    written = sorted(set(p for p in lib.parent.rglob("*") if p.is_file()) - set(before))
+    assert [p.parent.relative_to(lib.parent).as_posix() for p in written] == ["out/cache/glb"]
+    assert written[0].read_bytes() == first

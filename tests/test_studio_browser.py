@@ -116,9 +116,12 @@ def test_library_lists_takes_and_the_malformed_file(studio, page):
 def test_opening_a_take_draws_the_body_at_its_joints(studio, page):
     base, lib = studio
     open_view(page, base, f"take={WALK_ID}&f=200&cam=side")
+    page.wait_for_function("window.studio.player.figure.body !== null", timeout=60_000)
     page.wait_for_timeout(300)
     drawn = canvas_pixels(page)
     page.uncheck("#show-stick")
+    page.wait_for_timeout(300)
+    body_only = canvas_pixels(page)
     page.uncheck("#show-body")
     page.wait_for_timeout(300)
     empty = canvas_pixels(page)
@@ -130,6 +133,10 @@ def test_opening_a_take_draws_the_body_at_its_joints(studio, page):
     changed = np.abs(drawn - empty).sum(axis=2) > 30
     hits = [changed[max(0, int(y) - 2):int(y) + 3, max(0, int(x) - 2):int(x) + 3].any() for x, y in points]
     assert np.mean(hits) >= 0.9, f"{np.mean(hits):.0%} of joints drawn"
+    # the skinned body alone (GPU skinning of the server's GLB) covers the joints too
+    changed = np.abs(body_only - empty).sum(axis=2) > 30
+    hits = [changed[max(0, int(y) - 2):int(y) + 3, max(0, int(x) - 2):int(x) + 3].any() for x, y in points]
+    assert np.mean(hits) >= 0.9, f"{np.mean(hits):.0%} of joints inside the drawn body"
     # and the frame is what was asked
     assert frame_of(page) == 200
 
@@ -174,11 +181,24 @@ def test_compare_shows_two_bodies(studio, page):
     open_view(page, base, f"take={TURNED_ID}&f=150&cmp={WALK_ID}&align=dtw&space=side&joints=LeftLeg")
     page.wait_for_function("window.studio.player.ghost !== null")
     assert "aligned in time by DTW" in page.inner_text("#compare-status")
+    page.wait_for_function("window.studio.player.ghost.body !== null && window.studio.player.figure.body !== null",
+                           timeout=60_000)
+    page.wait_for_timeout(300)
     page.screenshot(path=SHOTS / "compare.png")
-    pixels = canvas_pixels(page)
-    orange = ((pixels[..., 0] > 150) & (pixels[..., 0] - pixels[..., 2] > 60)).sum()
-    blue = ((pixels[..., 2] > 120) & (pixels[..., 0] < 90)).sum()
-    assert orange > 150 and blue > 150, (orange, blue)
+    both = canvas_pixels(page)
+    hide = "(which) => { window.studio.player[which].group.visible = false; window.studio.player.dirty = true; }"
+    page.evaluate(hide, "ghost")
+    page.wait_for_timeout(300)
+    main_only = canvas_pixels(page)
+    page.evaluate(hide, "figure")
+    page.wait_for_timeout(300)
+    empty = canvas_pixels(page)
+    ghost_px = (np.abs(both - main_only).sum(axis=2) > 30).sum()
+    main_px = (np.abs(main_only - empty).sum(axis=2) > 30).sum()
+    assert ghost_px > 2000 and main_px > 2000, (ghost_px, main_px)
+    # the ghost is translucent orange: where only it differs, red dominates blue
+    ghost_mask = (np.abs(both - main_only).sum(axis=2) > 30) & (np.abs(main_only - empty).sum(axis=2) <= 30)
+    assert (both[ghost_mask][:, 0] - both[ghost_mask][:, 2]).mean() > 30
     ghost_frame = page.evaluate("window.studio.player.ghost.frame")
     assert abs(ghost_frame - (150 + SHIFT)) <= 2
     assert page.locator("#plots .uplot .u-legend").first.inner_text().count("(compare)") == 1

@@ -113,7 +113,7 @@ def create_app(roots: list[Path], options: ReadOptions = ReadOptions(), out: Pat
             from usdmotion.io.gltf import glb_bytes
         except ImportError:
             raise StudioError(501, "this usdmotion has no GLB writer; showing the stick figure") from None
-        data = compute(entry, "glb", lambda m: glb_bytes(m, mesh=True))
+        data = compute(entry, "glb", lambda m: cached_glb(entry, options, out, lambda: glb_bytes(m, mesh=True)))
         return Response(data, media_type="model/gltf-binary")
 
     def compare_takes(request: Request) -> Response:
@@ -147,6 +147,29 @@ def create_app(roots: list[Path], options: ReadOptions = ReadOptions(), out: Pat
     app.add_middleware(_Guard)
     app.state.library = library
     return app
+
+
+def cached_glb(entry: Entry, options: ReadOptions, out: Path | None, make) -> bytes:
+    """The take's GLB from ``out/cache/glb`` (keyed by path, size, mtime and reading options), or
+    ``make()`` written there atomically. Building the skinned body takes seconds; reopening must not."""
+    import hashlib
+
+    from usdmotion.io.atomic import atomic_output
+
+    if out is None:
+        return make()
+    key = f"{entry.path}|{entry.size}|{entry.mtime_ns}|{options.units}|{options.up_axis}|v1"
+    path = out / "cache" / "glb" / f"{hashlib.sha1(key.encode()).hexdigest()}.glb"
+    if path.is_file():
+        return path.read_bytes()
+    data = make()
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with atomic_output(path) as tmp:
+            tmp.write_bytes(data)
+    except OSError:
+        pass  # a read-only or full output folder only loses the cache
+    return data
 
 
 async def _error_response(request: Request, exc: StudioError) -> Response:
