@@ -158,11 +158,11 @@ async function openCompare() {
     ghostMap = answer.map;
     const ghost = player.setGhost(ghostTake, ghostMap);
     if (state.space === 'root') player.placeGhost(answer.align);
-    if (state.space === 'side') {  // aligned, then beside the take (perpendicular to its travel)
-      const d = player.extent.direction, s = Math.max(1, player.extent.height * 0.7);
+    if (state.space === 'side') {  // aligned, then beside the take as the camera sees it
+      const [rx, rz] = player.screenRight(), s = Math.max(1, player.extent.height * 0.6);
       const m = answer.align.map(row => [...row]);
-      m[0][3] += d.z * s;
-      m[2][3] -= d.x * s;
+      m[0][3] += rx * s;
+      m[2][3] += rz * s;
       player.placeGhost(m);
     }
     $('compare-status').textContent = `${ghostTake.id.split('/').slice(1).join('/')}: ` +

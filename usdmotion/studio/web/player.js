@@ -224,6 +224,12 @@ export class Player {
     this.dirty = true;
   }
 
+  /** The camera's right direction on the ground ``[x, z]`` (unit). */
+  screenRight() {
+    const e = this.camera.matrixWorld.elements, n = Math.hypot(e[0], e[2]) || 1;
+    return [e[0] / n, e[2] / n];
+  }
+
   /** Screen position (CSS pixels from the canvas's top-left) of a world point. */
   project(point) {
     const v = point.clone().project(this.camera);
