@@ -44,8 +44,8 @@ def missing_web_packages() -> list[str]:
 
 def create_app(roots: list[Path], options: ReadOptions = ReadOptions(), out: Path | None = None) -> Starlette:
     """The studio over ``roots``; ``out`` is the only folder it may write to (created on first use)."""
-    library = Library(roots, options)
     cache = takes.TakeCache(options)
+    library = Library(roots, options, read=cache.motion)
 
     def take(request: Request, param: str = "take") -> Entry:
         entry = library.resolve(request.query_params.get(param, ""))

@@ -42,9 +42,11 @@ class Entry:
 class Library:
     """Takes under ``roots`` (folders, searched recursively, or single files)."""
 
-    def __init__(self, roots: list[Path], options: ReadOptions = ReadOptions()) -> None:
+    def __init__(self, roots: list[Path], options: ReadOptions = ReadOptions(), read=None) -> None:
         self.roots = [Path(r).resolve() for r in roots]
         self.options = options
+        #: ``read(entry) -> Motion``; the app passes its take cache so a take listed is already read
+        self.read = read or (lambda entry: read_take(entry, options))
         self._meta: dict[tuple[str, int, int], dict] = {}
         self._lock = threading.Lock()
 
@@ -106,19 +108,19 @@ class Library:
         with self._lock:
             if key in self._meta:
                 return self._meta[key]
-        meta = describe_take(entry, self.options)
+        meta = describe_take(entry, self.read)
         with self._lock:
             self._meta[key] = meta
         return meta
 
 
-def describe_take(entry: Entry, options: ReadOptions) -> dict:
-    """Library metadata of one take (see :meth:`Library.metadata`)."""
+def describe_take(entry: Entry, read) -> dict:
+    """Library metadata of one take read by ``read(entry)`` (see :meth:`Library.metadata`)."""
     from usdmotion.kinematics import skeleton_height
     from usdmotion.skeleton_names import detect_profile
 
     try:
-        motion = read_take(entry, options)
+        motion = read(entry)
         names = [n for n, end in zip(motion.joint_names, motion.end_sites) if not end]
         return {
             "joints": len(names),

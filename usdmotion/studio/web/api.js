@@ -22,10 +22,12 @@ export async function getBytes(path, params) {
   return response.arrayBuffer();
 }
 
-/** Everything the player needs for one take: skeleton, positions (F*J*3, m, Y up), centre of mass or null. */
+/** What the player needs to draw a take: skeleton and positions (F*J*3, m, Y up). ``comLoaded``
+ *  resolves later with the centre of mass (needs the analysis) or null; it sets ``take.com``. */
 export async function loadTake(id) {
   const [skeleton, positions] = await Promise.all([getJSON('/api/skeleton', {take: id}),
                                                    getFloats('/api/positions', {take: id})]);
-  const com = await getFloats('/api/com', {take: id}).catch(() => null);
-  return {id, ...skeleton, positions, com};
+  const take = {id, ...skeleton, positions, com: null};
+  take.comLoaded = getFloats('/api/com', {take: id}).catch(() => null).then(com => { take.com = com; return com; });
+  return take;
 }

@@ -58,6 +58,7 @@ const plots = new Plots($('plots'), t => player.setFrame(Math.round(t * player.f
 const library = new LibraryView($('takes'), $('filter'), $('library-status'), id => openTake(id, true));
 
 async function openTake(id, fresh) {
+  player.openedAt = performance.now();
   if (fresh) Object.assign(state, {frame: 0, range: null, compare: '', joints: [], alignFrame: 0});
   state.take = id;
   library.select(id);
@@ -84,7 +85,8 @@ async function openTake(id, fresh) {
   fillJoints();
   player.setFrame(state.frame);
   $('view-message').textContent = 'body: loading…';
-  await Promise.all([loadSeries(), state.compare ? openCompare() : Promise.resolve(), (async () => {
+  await Promise.all([loadSeries(), take.comLoaded.then(applyTrace),
+                     state.compare ? openCompare() : Promise.resolve(), (async () => {
     const ok = await figure.loadBody(`/api/glb?take=${encodeURIComponent(id)}`);
     $('view-message').textContent = ok ? '' : 'no skinned body from this server: stick figure';
     applyToggles();
@@ -202,7 +204,12 @@ function wire() {
   for (const [box, key] of [['show-body', 'body'], ['show-stick', 'stick'], ['show-grid', 'grid']]) {
     $(box).onchange = e => { state[key] = e.target.checked; applyToggles(); writeUrl(); };
   }
-  $('trace').onchange = e => { state.trace = e.target.value; applyTrace(); writeUrl(); };
+  $('trace').onchange = async e => {
+    state.trace = e.target.value;
+    if (state.trace === 'com') await Promise.all([take, ghostTake].filter(Boolean).map(t => t.comLoaded));
+    applyTrace();
+    writeUrl();
+  };
   $('joints').onchange = e => { state.joints = [...e.target.selectedOptions].map(o => o.value); loadSeries();
     writeUrl(); };
   document.querySelectorAll('input[name=q]').forEach(c => c.addEventListener('change', () => {

@@ -34,6 +34,7 @@ export class Player {
     this.range = null;
     this.cameraMode = 'side';
     this.rendered = 0;      // frames drawn (benchmarks read it)
+    this.playLog = [];      // [time ms, frame] of each frame drawn while playing (benchmarks read it)
     this.dirty = true;
     new ResizeObserver(() => this.resize()).observe(canvas);
     this.resize();
@@ -60,6 +61,7 @@ export class Player {
     this.clearStrobe();
     this.figure = new Figure(take);
     this.scene.add(this.figure.group);
+    this.firstDrawnAt = this.bodyDrawnAt = null;
     this.range = null;
     this.frame = 0;
     this.extent = this.measure(take);
@@ -171,6 +173,11 @@ export class Player {
       this.renderer.render(this.scene, this.camera);
       this.rendered++;
       this.dirty = false;
+      const t = performance.now();  // for benchmarks: when the take, then its body, were first drawn
+      if (this.figure && this.firstDrawnAt === null) this.firstDrawnAt = t;
+      if (this.figure && this.figure.body && this.bodyDrawnAt === null) this.bodyDrawnAt = t;
+      if (this.playing) this.playLog.push([t, this.frame]);
+      if (this.playLog.length > 4000) this.playLog.splice(0, 2000);
     }
   }
 
