@@ -161,8 +161,10 @@ def test_play_runs_at_the_capture_rate_and_scrub_lands(studio, page):
 
 def test_plot_cursor_follows_and_clicking_seeks(studio, page):
     base, _ = studio
-    open_view(page, base, f"take={WALK_ID}&f=262&joints=LeftLeg&q=bend,com_height")
+    open_view(page, base, f"take={WALK_ID}&f=262&joints=LeftLeg&q=bend,com_height&trace=com&stick=0")
     page.wait_for_selector(".plot-cursor")
+    page.wait_for_function("window.studio.player.figure.body !== null && window.studio.player.figure.trace !== null",
+                           timeout=60_000)
     assert page.locator("#plots .plot").count() == 2  # deg and m
     over = page.locator("#plots .plot").first.locator(".u-over")
     box = over.bounding_box()
@@ -228,7 +230,8 @@ def test_stroboscope_exports_a_png(studio, page):
     from PIL import Image
 
     base, _ = studio
-    open_view(page, base, f"take={WALK_ID}&range=0-400&cam=side")
+    open_view(page, base, f"take={WALK_ID}&range=0-400&cam=side&stick=0")
+    page.wait_for_function("window.studio.player.figure.body !== null", timeout=60_000)
     page.fill("#strobe-count", "6")
     page.click("#strobe")
     href = page.get_attribute("#strobe-png", "href")
