@@ -130,3 +130,38 @@ def test_glb_is_the_writers_body_and_is_cached_only_in_the_output_folder(studio)
     written = sorted(set(p for p in lib.parent.rglob("*") if p.is_file()) - set(before))
     assert [p.parent.relative_to(lib.parent).as_posix() for p in written] == ["out/cache/glb"]
     assert written[0].read_bytes() == first
+
+
+def test_a_huge_file_is_listed_with_an_error_and_not_read(studio, monkeypatch):
+    import usdmotion.studio.library as library
+
+    base, lib = studio
+    (lib / "huge").mkdir()
+    (lib / "huge" / "long.bvh").write_bytes(WALK.read_bytes())
+    monkeypatch.setattr(library, "MAX_FILE_BYTES", 100_000)
+    try:
+        _, meta = get_json(base, "/api/meta?id=0/huge/long.bvh")
+        size = WALK.stat().st_size
+        assert meta["meta"]["0/huge/long.bvh"] == {
+            "error": f"huge/long.bvh: file is {size:,} bytes; the studio reads files up to 100,000 bytes"}
+        assert get_json(base, "/api/positions?take=0/huge/long.bvh")[0] == 422
+        assert get_json(base, "/api/takes")[0] == 200
+    finally:
+        (lib / "huge" / "long.bvh").unlink()
+        (lib / "huge").rmdir()
+
+
+def test_listing_thousands_of_files_reads_none_of_them(tmp_path):
+    from usdmotion.studio.library import Library
+
+    tiny = WALK.read_bytes()[:2000]  # never parsed: listing must not read files
+    for i in range(2000):
+        folder = tmp_path / f"athlete{i % 20:02d}"
+        folder.mkdir(exist_ok=True)
+        (folder / f"take{i:04d}.bvh").write_bytes(tiny)
+    read = []
+    library = Library([tmp_path], read=lambda entry: read.append(entry))
+    entries = library.scan()
+    assert len(entries) == 2000 and entries[0].id == "0/athlete00/take0000.bvh"
+    assert read == []  # metadata is read only when asked for, one take at a time
+    assert library.resolve("0/athlete07/take0007.bvh").path == tmp_path / "athlete07" / "take0007.bvh"

@@ -140,8 +140,8 @@ def read_take(entry: Entry, options: ReadOptions):
     from usdmotion.io import read_motion
 
     if entry.size > MAX_FILE_BYTES:
-        raise InputError(entry.name, f"file is {entry.size / 2**20:.0f} MiB; the studio reads files up to "
-                                     f"{MAX_FILE_BYTES // 2**20} MiB")
+        raise InputError(entry.name, f"file is {entry.size:,} bytes; the studio reads files up to "
+                                     f"{MAX_FILE_BYTES:,} bytes")
     return read_motion(entry.path, units=options.units, up_axis=options.up_axis)
 
 
