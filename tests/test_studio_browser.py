@@ -207,6 +207,18 @@ def test_compare_shows_two_bodies(studio, page):
     ghost_frame = page.evaluate("window.studio.player.ghost.frame")
     assert abs(ghost_frame - (150 + SHIFT)) <= 2
     assert page.locator("#plots .uplot .u-legend").first.inner_text().count("(compare)") == 1
+    # two synchronized views: the take on the left half, the ghost (orange) on the right half
+    page.evaluate("() => { window.studio.player.figure.group.visible = true; }")
+    page.select_option("#align-space", "split")
+    page.wait_for_function("window.studio.player.split && window.studio.player.ghost && "
+                           "window.studio.player.ghost.body !== null", timeout=60_000)
+    page.wait_for_timeout(300)
+    page.screenshot(path=SHOTS / "compare_two_views.png")
+    split = canvas_pixels(page)
+    orange = (split[..., 0] - split[..., 2] > 60) & (split[..., 0] > 150)
+    half = split.shape[1] // 2
+    assert orange[:, half:].sum() > 1000 and orange[:, :half].sum() < 50, (orange[:, :half].sum(), orange[:, half:].sum())
+    assert (np.abs(split[:, :half] - empty[:, :half]).sum(axis=2) > 30).sum() > 1000  # the take on the left
 
 
 def test_url_reopens_the_same_frame_and_camera(studio, browser, page):

@@ -151,7 +151,14 @@ function showRange() {
 }
 
 async function openCompare() {
-  if (!state.compare || !take) { player.clearGhost(); ghostTake = ghostMap = ghostSeries = null; return; }
+  if (!state.compare || !take) {
+    player.clearGhost();
+    ghostTake = ghostMap = ghostSeries = null;
+    if (take) await loadSeries();
+    $('compare-status').textContent = '';
+    writeUrl();
+    return;
+  }
   $('compare-status').textContent = 'aligning…';
   try {
     ghostTake = await loadTake(state.compare);
@@ -159,7 +166,8 @@ async function openCompare() {
                                                   offset: state.offset, frame: state.alignFrame});
     ghostMap = answer.map;
     const ghost = player.setGhost(ghostTake, ghostMap);
-    if (state.space === 'root') player.placeGhost(answer.align);
+    player.split = state.space === 'split';
+    if (state.space === 'root' || state.space === 'split') player.placeGhost(answer.align);
     if (state.space === 'side') {  // aligned, then beside the take as the camera sees it
       const [rx, rz] = player.screenRight(), s = Math.max(1, player.extent.height * 0.6);
       const m = answer.align.map(row => [...row]);

@@ -170,7 +170,8 @@ export class Player {
       if (f !== this.frame) this.setFrame(f);
     }
     if (this.dirty) {
-      this.renderer.render(this.scene, this.camera);
+      if (this.split && this.ghost) this.renderSplit();
+      else this.renderer.render(this.scene, this.camera);
       this.rendered++;
       this.dirty = false;
       const t = performance.now();  // for benchmarks: when the take, then its body, were first drawn
@@ -179,6 +180,26 @@ export class Player {
       if (this.playing) this.playLog.push([t, this.frame]);
       if (this.playLog.length > 4000) this.playLog.splice(0, 2000);
     }
+  }
+
+  /** Two synchronized views: the take on the left, the ghost on the right, one camera. */
+  renderSplit() {
+    const r = this.renderer, w = this.canvas.width, h = this.canvas.height, half = Math.floor(w / 2);
+    this.camera.aspect = half / h;
+    this.camera.updateProjectionMatrix();
+    r.setScissorTest(true);
+    for (const [x, shown, hidden] of [[0, this.figure, this.ghost], [half, this.ghost, this.figure]]) {
+      shown.group.visible = true;
+      hidden.group.visible = false;
+      r.setViewport(x, 0, half, h);
+      r.setScissor(x, 0, half, h);
+      r.render(this.scene, this.camera);
+    }
+    r.setScissorTest(false);
+    r.setViewport(0, 0, w, h);
+    this.figure.group.visible = this.ghost.group.visible = true;
+    this.camera.aspect = w / h;
+    this.camera.updateProjectionMatrix();
   }
 
   setGhost(take, frameMap) {
