@@ -133,8 +133,7 @@ def create_app(roots: list[Path], options: ReadOptions = ReadOptions(), out: Pat
             align = compare.spatial_alignment(ma, frame, mb, int(round(frame_map[frame])))
         except Exception as exc:  # noqa: BLE001
             raise StudioError(422, str(exc).splitlines()[0] if str(exc) else type(exc).__name__) from None
-        return JSONResponse({"map": [round(float(x), 3) for x in frame_map], "frame": frame,
-                             "align": [[float(v) for v in row] for row in align]})
+        return JSONResponse({"map": np.round(frame_map, 3).tolist(), "frame": frame, "align": align.tolist()})
 
     api = [Route("/api/takes", take_list), Route("/api/meta", metadata), Route("/api/skeleton", skeleton),
            Route("/api/positions", positions), Route("/api/com", com), Route("/api/series", series),

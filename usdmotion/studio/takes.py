@@ -119,7 +119,6 @@ def series(kin, joints: list[str], quantities: list[str]) -> dict:
             v = kin.com[:, kin.up_index] if q == "com_height" else np.linalg.norm(kin.com_velocity, axis=-1)
             out.append({"key": q, "joint": None, "label": label, "unit": unit, "values": v})
     for s in out:
-        v = np.asarray(s["values"], dtype=np.float64)
-        s["values"] = [None if not np.isfinite(x) else round(float(x), 5) for x in v]
-    return {"time": [round(float(t), 6) for t in kin.time], "series": out,
-            "com": kin.com is not None}
+        v = np.round(np.asarray(s["values"], dtype=np.float64), 5)
+        s["values"] = np.where(np.isfinite(v), v, None).tolist()  # JSON has no NaN: null
+    return {"time": np.round(kin.time, 6).tolist(), "series": out, "com": kin.com is not None}
