@@ -59,7 +59,12 @@ const library = new LibraryView($('takes'), $('filter'), $('library-status'), id
 
 async function openTake(id, fresh) {
   player.openedAt = performance.now();
-  if (fresh) Object.assign(state, {frame: 0, range: null, compare: '', joints: [], alignFrame: 0});
+  if (fresh) {
+    Object.assign(state, {frame: 0, range: null, compare: '', joints: [], alignFrame: 0});
+    ghostTake = ghostMap = ghostSeries = null;
+    $('compare').value = '';
+    $('compare-status').textContent = '';
+  }
   state.take = id;
   library.select(id);
   $('player').hidden = false;
@@ -235,6 +240,9 @@ function wire() {
     link.hidden = false;
     setTimeout(() => player.clearStrobe(), 4000);
   };
+  // after a mouse click, controls give the keyboard back to the player (space = play, not 'press again')
+  document.querySelectorAll('button, input[type=checkbox], input[type=range]').forEach(el =>
+    el.addEventListener(el.type === 'range' ? 'change' : 'click', () => el.blur()));
   window.addEventListener('keydown', e => {
     if (e.target.tagName === 'INPUT' && e.target.type !== 'range' && e.target.type !== 'checkbox') return;
     if (e.target.tagName === 'SELECT') return;
