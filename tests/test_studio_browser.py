@@ -155,6 +155,20 @@ def test_play_runs_at_the_capture_rate_and_scrub_lands(studio, page):
     frames = [int(re.match(r"frame (\d+)", text).group(1)) for _, text in (start, end)]
     rate = (frames[1] - frames[0]) / ((end[0] - start[0]) / 1000.0)
     assert 120 * 0.8 <= rate <= 120 * 1.2, f"played {rate:.1f} frames/s, capture is 120"
+    # a loop range keeps playback inside it, wrapping from its end to its start
+    page.keyboard.press("Home")
+    page.locator("#scrub").fill("100")
+    page.keyboard.press("[")
+    page.locator("#scrub").fill("130")
+    page.keyboard.press("]")
+    assert page.inner_text("#range") == "loop 100–130"
+    page.keyboard.press("Space")
+    seen = []
+    for _ in range(12):
+        page.wait_for_timeout(80)
+        seen.append(frame_of(page))
+    page.keyboard.press("Space")
+    assert min(seen) >= 100 and max(seen) <= 130 and any(b < a for a, b in zip(seen, seen[1:])), seen
     page.locator("#scrub").fill("333")
     assert frame_of(page) == 333
     page.keyboard.press("ArrowRight")
