@@ -39,6 +39,8 @@ export class Player {
     new ResizeObserver(() => this.resize()).observe(canvas);
     this.resize();
     this.lastTick = performance.now();
+    // a hidden tab gets no animation frames: resume from where it was, not from where it would be
+    document.addEventListener('visibilitychange', () => { this.lastTick = performance.now(); });
     this.renderer.setAnimationLoop(now => this.tick(now));
   }
 
@@ -151,7 +153,7 @@ export class Player {
 
   /** Animation loop: advance the take's clock by the real time elapsed × speed. */
   tick(now) {
-    const dt = Math.min((now - this.lastTick) / 1000, 0.25);
+    const dt = (now - this.lastTick) / 1000;  // never capped: a slow frame drops frames, it does not slow time
     this.lastTick = now;
     if (this.playing && this.figure) {
       this.clock += dt * this.speed;
