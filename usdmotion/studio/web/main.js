@@ -18,6 +18,7 @@ const state = {
   trace: params.get('trace') || '', loop: params.get('loop') !== '0',
 };
 let take = null, ghostTake = null, ghostMap = null, series = null, ghostSeries = null;
+const asked = {series: 0, compare: 0};  // only the latest request of each kind may update the page
 
 function parseRange(text) {
   const m = /^(\d+)-(\d+)$/.exec(text || '');
@@ -114,9 +115,12 @@ function fillJoints() {
 
 async function loadSeries() {
   const ask = id => getJSON('/api/series', {take: id, joints: state.joints.join(','), q: state.q.join(',')});
+  const mine = ++asked.series;
   try {
-    series = await ask(take.id);
-    ghostSeries = ghostTake ? await ask(ghostTake.id).catch(() => null) : null;
+    const [mainSeries, otherSeries] = await Promise.all([ask(take.id),
+      ghostTake ? ask(ghostTake.id).catch(() => null) : null]);
+    if (mine !== asked.series) return;
+    [series, ghostSeries] = [mainSeries, otherSeries];
     plots.show(series, ghostSeries, ghostMap);
     plots.setTime(player.frame / player.fps);
   } catch (e) {
@@ -157,6 +161,7 @@ function showRange() {
 
 async function openCompare() {
   if (!state.compare || !take) {
+    asked.compare++;
     player.clearGhost();
     ghostTake = ghostMap = ghostSeries = null;
     if (take) await loadSeries();
@@ -165,10 +170,13 @@ async function openCompare() {
     return;
   }
   $('compare-status').textContent = 'aligning…';
+  $('compare-status').className = '';
+  const mine = ++asked.compare;
   try {
-    ghostTake = await loadTake(state.compare);
-    const answer = await getJSON('/api/compare', {a: take.id, b: ghostTake.id, mode: state.align,
-                                                  offset: state.offset, frame: state.alignFrame});
+    const [other, answer] = await Promise.all([loadTake(state.compare), getJSON('/api/compare', {
+      a: take.id, b: state.compare, mode: state.align, offset: state.offset, frame: state.alignFrame})]);
+    if (mine !== asked.compare) return;
+    ghostTake = other;
     ghostMap = answer.map;
     const ghost = player.setGhost(ghostTake, ghostMap);
     player.split = state.space === 'split';
@@ -187,6 +195,7 @@ async function openCompare() {
     await ghost.loadBody(`/api/glb?take=${encodeURIComponent(ghostTake.id)}`);
     applyToggles();
   } catch (e) {
+    if (mine !== asked.compare) return;
     $('compare-status').textContent = `compare: ${e.message}`;
     $('compare-status').className = 'error-text';
     player.clearGhost();
