@@ -2,7 +2,7 @@
 in headless Chromium (software WebGL, SwiftShader) at 1280×720; GLB size and the server's
 time per request.
 
-    PYTHONPATH=$PWD .venv/bin/python benchmarks/studio.py [--frames 5000] [--play 6]
+    PYTHONPATH=$PWD .venv/bin/python benchmarks/studio.py [--frames 5000] [--play 6] [--library 3000]
 
 Goals (issue 13): ≤ 1.0 s from opening the take to its first drawn frame; playback that keeps
 real time at 1280×720 (frames are dropped, never slowed: the take's clock advances at the
@@ -10,7 +10,8 @@ capture rate whatever the drawing rate). The take is the bundled CMU walk (31 jo
 cycled by the library's ``cycle`` to ``--frames`` frames. "First drawn frame" is the first
 canvas render after the click with the take in it (the stick figure from the server's FK);
 the skinned body (GLB) follows and is timed separately, cold (built) and warm (cached in the
-output folder). Prints a table; writes ``benchmarks/results/studio.json``.
+output folder). Also: how soon a library of ``--library`` files is listed and filled in.
+Prints a table; writes ``benchmarks/results/studio.json``.
 """
 
 from __future__ import annotations
@@ -86,10 +87,34 @@ def open_and_play(browser, base: str, take_id: str, play_s: float, by_url: bool 
             "take_frames_per_s": (f1 - f0) / seconds, "drawn_per_s": (len(log) - 1) / seconds}
 
 
+def library_fill(browser, n_files: int, tmp: Path) -> dict:
+    """A library of ``n_files`` small (malformed) BVH files: seconds from navigation until the
+    list is shown, and until every file's metadata (here: its error) is filled in."""
+    from studio_support import running_studio
+
+    lib = tmp / "many"
+    for i in range(n_files):
+        folder = lib / f"athlete{i % 30:02d}"
+        folder.mkdir(parents=True, exist_ok=True)
+        (folder / f"take{i:05d}.bvh").write_text("HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0\n}\n")
+    with running_studio([lib], out=tmp / "out_many") as base:
+        page = browser.new_page()
+        t = time.perf_counter()
+        page.goto(base + "/")
+        page.wait_for_function(f"document.querySelectorAll('#takes tbody tr').length >= {n_files}")
+        shown = time.perf_counter() - t
+        page.wait_for_function("!document.querySelector('#library-status').textContent.includes('reading')",
+                               timeout=600_000)
+        filled = time.perf_counter() - t
+        page.close()
+    return {"files": n_files, "list_shown_s": shown, "filled_s": filled}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--frames", type=int, default=5000)
     ap.add_argument("--play", type=float, default=6.0)
+    ap.add_argument("--library", type=int, default=3000, help="files in the library-listing case")
     args = ap.parse_args()
     from playwright.sync_api import sync_playwright
 
@@ -108,6 +133,7 @@ def main() -> None:
             rows["url"] = open_and_play(browser, base, f"0/{unread.name}", args.play, by_url=True)
             rows["cold"] = open_and_play(browser, base, take_id, args.play)  # server reads, FK, builds the body
             rows["warm"] = open_and_play(browser, base, take_id, args.play)  # server caches, GLB from out/cache
+            library = library_fill(browser, args.library, tmp)
         finally:
             browser.close()
         requests = {name: server_timing(base, target) for name, target in [
@@ -126,12 +152,14 @@ def main() -> None:
     print(f"{'request (warm)':<16}{'server ms':>10}{'bytes':>12}{'client ms':>11}")
     for name, (server_ms, size, client_ms) in requests.items():
         print(f"{name:<16}{server_ms:>10.1f}{size:>12,}{client_ms:>11.1f}")
+    print(f"library of {library['files']:,} files: list shown {library['list_shown_s']:.2f} s after navigation, "
+          f"all metadata in {library['filled_s']:.2f} s")
     out = ROOT / "benchmarks" / "results" / "studio.json"
     out.parent.mkdir(exist_ok=True)
     out.write_text(json.dumps({"frames": args.frames, "open": rows, "goal_first_frame_s": 1.0,
                                "requests_warm": {k: {"server_ms": v[0], "bytes": v[1], "client_ms": v[2]}
                                                  for k, v in requests.items()},
-                               "glb_bytes": requests["glb"][1]}, indent=2))
+                               "glb_bytes": requests["glb"][1], "library": library}, indent=2))
     print(f"wrote {out.relative_to(ROOT)}")
 
 

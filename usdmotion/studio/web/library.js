@@ -12,6 +12,7 @@ export class LibraryView {
     this.takes = [];
     this.sortKey = 'name';
     this.sortDir = 1;
+    this.rows = new Map();  // id -> <tr> of the takes shown
     filter.addEventListener('input', () => this.render());
     table.querySelectorAll('th[data-sort]').forEach(th => th.addEventListener('click', () => {
       this.sortDir = this.sortKey === th.dataset.sort ? -this.sortDir : 1;
@@ -33,9 +34,14 @@ export class LibraryView {
     for (let i = 0; i < this.takes.length; i += BATCH) {
       const batch = this.takes.slice(i, i + BATCH);
       const {meta} = await getJSON('/api/meta', batch.map(t => ['id', t.id]));
-      batch.forEach(t => { t.meta = meta[t.id]; });
-      this.render();
+      batch.forEach(t => {  // replace just these rows: thousands of takes must not re-render per batch
+        t.meta = meta[t.id];
+        const old = this.rows.get(t.id);
+        if (old) { const tr = this.row(t); old.replaceWith(tr); this.rows.set(t.id, tr); }
+      });
+      this.showStatus(this.rows.size);
     }
+    this.render();  // sorted by the metadata now known
   }
 
   readable() { return this.takes.filter(t => t.meta && !t.meta.error); }
@@ -52,10 +58,15 @@ export class LibraryView {
       if (vb === null || vb === undefined) return -1;
       return (va < vb ? -1 : 1) * this.sortDir;
     });
-    this.body.replaceChildren(...shown.map(t => this.row(t)));
+    this.rows = new Map(shown.map(t => [t.id, this.row(t)]));
+    this.body.replaceChildren(...this.rows.values());
+    this.showStatus(shown.length);
+  }
+
+  showStatus(shown) {
     const done = this.takes.filter(t => t.meta).length;
     const failed = this.takes.filter(t => t.meta && t.meta.error).length;
-    this.status.textContent = `${shown.length} of ${this.takes.length} takes` +
+    this.status.textContent = `${shown} of ${this.takes.length} takes` +
       (done < this.takes.length ? ` · reading ${done}/${this.takes.length}` : '') +
       (failed ? ` · ${failed} could not be read` : '');
   }
@@ -79,11 +90,13 @@ export class LibraryView {
       tr.className = 'take';
       tr.append(cell(m.joints), cell(m.frames), cell(+m.fps.toFixed(3)), cell(m.duration_s.toFixed(2)), cell(m.rig));
     }
+    if (t.id === this.selectedId) tr.classList.add('selected');
     if (!t.meta || !t.meta.error) tr.addEventListener('click', () => this.onOpen(t.id));
     return tr;
   }
 
   select(id) {
+    this.selectedId = id;
     this.body.querySelectorAll('tr').forEach(tr => tr.classList.toggle('selected', tr.dataset.id === id));
   }
 }
