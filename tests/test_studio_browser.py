@@ -178,9 +178,9 @@ def test_play_runs_at_the_capture_rate_and_scrub_lands(studio, page):
 
 def test_plot_cursor_follows_and_clicking_seeks(studio, page):
     base, _ = studio
-    open_view(page, base, f"take={WALK_ID}&f=262&joints=LeftLeg&q=bend,com_height&trace=com&stick=0")
+    open_view(page, base, f"take={WALK_ID}&f=262&joints=LeftLeg&q=bend,com_height&comtrace=1&trace=RightHand&stick=0")
     page.wait_for_selector(".plot-cursor")
-    page.wait_for_function("window.studio.player.figure.body !== null && window.studio.player.figure.trace !== null",
+    page.wait_for_function("window.studio.player.figure.body !== null && window.studio.player.figure.traces.length == 2",
                            timeout=60_000)
     assert page.locator("#plots .plot").count() == 2  # deg and m
     over = page.locator("#plots .plot").first.locator(".u-over")

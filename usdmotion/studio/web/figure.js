@@ -26,7 +26,7 @@ export class Figure {
     this.group.add(this.stickGroup);
     this.body = null;
     this.mixer = null;
-    this.trace = null;
+    this.traces = [];
     this.frame = 0;
   }
 
@@ -86,15 +86,17 @@ export class Figure {
     return true;
   }
 
-  setTrace(values, first, last) {
-    if (this.trace) { this.group.remove(this.trace); this.trace.geometry.dispose(); this.trace = null; }
-    if (!values) return;
-    const n = last - first + 1, pts = new Float32Array(n * 3);
-    pts.set(values.subarray(first * 3, (last + 1) * 3));
-    const g = new THREE.BufferGeometry();
-    g.setAttribute('position', new THREE.BufferAttribute(pts, 3));
-    this.trace = new THREE.Line(g, new THREE.LineBasicMaterial({color: this.opacity < 1 ? 0xd07020 : 0xd02020}));
-    this.group.add(this.trace);
+  /** Paths over frames first..last: ``lines`` = [[values (F*3), colour], ...] (replaces the previous ones). */
+  setTraces(lines, first, last) {
+    this.traces.forEach(t => { this.group.remove(t); t.geometry.dispose(); });
+    this.traces = lines.map(([values, color]) => {
+      const g = new THREE.BufferGeometry();
+      g.setAttribute('position', new THREE.BufferAttribute(values.slice(first * 3, (last + 1) * 3), 3));
+      const line = new THREE.Line(g, new THREE.LineBasicMaterial({color, transparent: this.opacity < 1,
+                                                                  opacity: this.opacity}));
+      this.group.add(line);
+      return line;
+    });
   }
 
   /** Positions (n*3) of one joint over all frames, for a trace. */

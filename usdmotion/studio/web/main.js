@@ -15,7 +15,8 @@ const state = {
   joints: (params.get('joints') || '').split(',').filter(Boolean),
   q: (params.get('q') || 'bend').split(',').filter(Boolean),
   stick: params.get('stick') !== '0', body: params.get('body') !== '0', grid: params.get('grid') !== '0',
-  trace: params.get('trace') || '', loop: params.get('loop') !== '0',
+  trace: params.get('trace') === 'com' ? '' : params.get('trace') || '', loop: params.get('loop') !== '0',
+  comTrace: params.get('comtrace') === '1' || params.get('trace') === 'com',
 };
 let take = null, ghostTake = null, ghostMap = null, series = null, ghostSeries = null;
 const asked = {series: 0, compare: 0};  // only the latest request of each kind may update the page
@@ -42,6 +43,7 @@ function writeUrl() {
   p.set('q', state.q.join(','));
   for (const k of ['stick', 'body', 'grid', 'loop']) if (!state[k]) p.set(k, '0');
   if (state.trace) p.set('trace', state.trace);
+  if (state.comTrace) p.set('comtrace', '1');
   history.replaceState(null, '', `?${p}`);
 }
 
@@ -107,9 +109,9 @@ function fillJoints() {
   if (!state.joints.length) state.joints = names.slice(1, 3);
   $('joints').replaceChildren(...names.map(n => new Option(n, n, false, state.joints.includes(n))));
   const trace = $('trace');
-  trace.replaceChildren(new Option('none', ''), new Option('centre of mass', 'com'),
-                        ...names.map(n => new Option(n, n)));
+  trace.replaceChildren(new Option('none', ''), ...names.map(n => new Option(n, n)));
   trace.value = state.trace;
+  $('com-trace').checked = state.comTrace;
   document.querySelectorAll('input[name=q]').forEach(c => { c.checked = state.q.includes(c.value); });
 }
 
@@ -143,14 +145,11 @@ function applyToggles() {
 
 function applyTrace() {
   for (const fig of [player.figure, player.ghost].filter(Boolean)) {
-    let values = null;
-    if (state.trace === 'com') values = fig.take.com;
-    else if (state.trace) {
-      const j = fig.take.joint_names.indexOf(state.trace);
-      values = j >= 0 ? fig.jointPath(j) : null;
-    }
-    const [a, b] = fig === player.figure ? [player.first, player.last] : [0, fig.take.frames - 1];
-    fig.setTrace(values, a, b);
+    const ghost = fig !== player.figure, lines = [];
+    if (state.comTrace && fig.take.com) lines.push([fig.take.com, ghost ? 0xb05000 : 0xd02020]);
+    const j = state.trace ? fig.take.joint_names.indexOf(state.trace) : -1;
+    if (j >= 0) lines.push([fig.jointPath(j), ghost ? 0xe09040 : 0x2060d0]);
+    fig.setTraces(lines, ghost ? 0 : player.first, ghost ? fig.take.frames - 1 : player.last);
   }
   player.dirty = true;
 }
@@ -178,6 +177,7 @@ async function openCompare() {
     if (mine !== asked.compare) return;
     ghostTake = other;
     ghostMap = answer.map;
+    other.comLoaded.then(() => { if (player.ghost && player.ghost.take === other) applyTrace(); });
     const ghost = player.setGhost(ghostTake, ghostMap);
     player.split = state.space === 'split';
     if (state.space === 'root' || state.space === 'split') player.placeGhost(answer.align);
@@ -226,9 +226,10 @@ function wire() {
   for (const [box, key] of [['show-body', 'body'], ['show-stick', 'stick'], ['show-grid', 'grid']]) {
     $(box).onchange = e => { state[key] = e.target.checked; applyToggles(); writeUrl(); };
   }
-  $('trace').onchange = async e => {
-    state.trace = e.target.value;
-    if (state.trace === 'com') await Promise.all([take, ghostTake].filter(Boolean).map(t => t.comLoaded));
+  $('trace').onchange = e => { state.trace = e.target.value; applyTrace(); writeUrl(); };
+  $('com-trace').onchange = async e => {
+    state.comTrace = e.target.checked;
+    await Promise.all([take, ghostTake].filter(Boolean).map(t => t.comLoaded));
     applyTrace();
     writeUrl();
   };
