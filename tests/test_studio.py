@@ -165,3 +165,23 @@ def test_listing_thousands_of_files_reads_none_of_them(tmp_path):
     assert len(entries) == 2000 and entries[0].id == "0/athlete00/take0000.bvh"
     assert read == []  # metadata is read only when asked for, one take at a time
     assert library.resolve("0/athlete07/take0007.bvh").path == tmp_path / "athlete07" / "take0007.bvh"
+
+
+def test_a_z_up_take_is_turned_to_the_viewers_y_up_like_its_glb(tmp_path):
+    import dataclasses
+
+    from pygltflib import GLTF2
+
+    from usdmotion.io.gltf import glb_bytes
+    from usdmotion.studio.takes import view_positions
+
+    walk = read_motion(WALK, units="asf")
+    z_up = dataclasses.replace(walk, up_axis="Z")
+    p = view_positions(z_up)
+    fk = joint_positions(z_up) * z_up.meters_per_unit
+    np.testing.assert_allclose(p, np.stack([fk[..., 0], fk[..., 2], -fk[..., 1]], axis=-1), atol=1e-5)
+    # the GLB writer turns the same way: its root node carries the rotation taking Z-up to Y-up
+    gltf = GLTF2.load_from_bytes(glb_bytes(z_up))
+    x, y, z, w = gltf.nodes[0].rotation
+    angle = 2 * np.degrees(np.arctan2(np.linalg.norm([x, y, z]), w))
+    assert abs(angle - 90) < 1e-4 and abs(abs(x) - np.sqrt(0.5)) < 1e-6 and np.sign(x) == -np.sign(w)
