@@ -28,7 +28,7 @@ def studio(
     from usdmotion.studio.server import serve
 
     def ready(url: str) -> None:
-        typer.echo(f"usdmotion studio: {url} (Ctrl+C to stop)", err=True)
+        typer.echo(f"usdmotion studio: {url} (writes only under {out}; Ctrl+C to stop)", err=True)
 
     options = ReadOptions(units=units, up_axis=up_axis.value if up_axis else None)
     serve(paths or [Path(".")], host, port, out, options, open_browser, ready)
