@@ -50,6 +50,7 @@ def test_library_lists_takes_and_the_malformed_file_with_its_error(studio):
     "/api/skeleton?take=/etc/passwd", "/api/skeleton?take=0//etc/passwd", "/api/skeleton?take=1/walk.bvh",
     "/api/positions?take=0/%2e%2e/outside.bvh", "/api/glb?take=0/./walk.bvh", "/api/skeleton?take=0/nothing.bvh",
     "/app/../../../pyproject.toml", "/vendor/three/../../package.json", "/app/%2e%2e/app.py", "/etc/passwd",
+    "/app/node_modules/three/package.json", "/app/package-lock.json",
     "/api/compare?a=0/walk.bvh&b=0/escape.bvh",
 ])
 def test_outside_the_roots_is_not_found(studio, target):

@@ -42,64 +42,62 @@ def missing_web_packages() -> list[str]:
     return [name for name, file in need.items() if not (NODE_MODULES / name / file).is_file()]
 
 
-def create_app(roots: list[Path], options: ReadOptions = ReadOptions(), out: Path | None = None) -> Starlette:
-    """The studio over ``roots``; ``out`` is the only folder it may write to (created on first use)."""
-    cache = takes.TakeCache(options)
-    library = Library(roots, options, read=cache.motion)
+class StudioApi:
+    """The JSON/binary endpoints, one method each, over one library and its take cache."""
 
-    def take(request: Request, param: str = "take") -> Entry:
-        entry = library.resolve(request.query_params.get(param, ""))
+    def __init__(self, library: Library, cache: takes.TakeCache, options: ReadOptions, out: Path | None) -> None:
+        self.library, self.cache, self.options, self.out = library, cache, options, out
+
+    def routes(self) -> list[Route]:
+        return [Route(f"/api/{name}", getattr(self, name.replace("-", "_")))
+                for name in ("takes", "meta", "skeleton", "positions", "com", "series", "glb", "compare")]
+
+    def take(self, request: Request, param: str = "take") -> Entry:
+        entry = self.library.resolve(request.query_params.get(param, ""))
         if entry is None:
             raise StudioError(404, "not found")
         return entry
 
-    def compute(entry: Entry, what: str, fn):
+    def compute(self, entry: Entry, what: str, fn):
         try:
-            return cache.get(entry, what, fn)
-        except StudioError:
-            raise
+            return self.cache.get(entry, what, fn)
         except Exception as exc:  # noqa: BLE001 - one line to the page, the server keeps running
             raise StudioError(422, error_line(entry, exc)) from None
 
-    def index(request: Request) -> Response:
-        return FileResponse(WEB / "index.html", headers={"Cache-Control": "no-cache"})
-
-    def take_list(request: Request) -> Response:
-        entries = library.scan()
-        return JSONResponse({"roots": [r.name for r in library.roots],
+    def takes(self, request: Request) -> Response:
+        entries = self.library.scan()
+        return JSONResponse({"roots": [r.name for r in self.library.roots],
                              "takes": [{"id": e.id, "name": e.name, "size": e.size} for e in entries],
                              "quantities": {k: {"label": v[0], "unit": v[1]} for k, v in takes.QUANTITIES.items()},
-                             "units": options.units, "up_axis": options.up_axis, "out": str(out) if out else None})
+                             "units": self.options.units, "up_axis": self.options.up_axis,
+                             "out": str(self.out) if self.out else None})
 
-    def metadata(request: Request) -> Response:
+    def meta(self, request: Request) -> Response:
         ids = request.query_params.getlist("id")
         if len(ids) > MAX_IDS:
             raise StudioError(413, f"at most {MAX_IDS} ids per request")
-        meta = {}
-        for take_id in ids:
-            entry = library.resolve(take_id)
-            meta[take_id] = library.metadata(entry) if entry else {"error": "not found"}
-        return JSONResponse({"meta": meta})
+        entries = {take_id: self.library.resolve(take_id) for take_id in ids}
+        return JSONResponse({"meta": {take_id: self.library.metadata(e) if e else {"error": "not found"}
+                                      for take_id, e in entries.items()}})
 
-    def skeleton(request: Request) -> Response:
-        return JSONResponse(compute(take(request), "skeleton", takes.skeleton))
+    def skeleton(self, request: Request) -> Response:
+        return JSONResponse(self.compute(self.take(request), "skeleton", takes.skeleton))
 
-    def positions(request: Request) -> Response:
-        return Response(compute(take(request), "positions", takes.view_positions).tobytes(),
+    def positions(self, request: Request) -> Response:
+        return Response(self.compute(self.take(request), "positions", takes.view_positions).tobytes(),
                         media_type="application/octet-stream")
 
-    def com(request: Request) -> Response:
-        entry = take(request)
-        kin = compute(entry, "analysis", takes.analysis)
+    def com(self, request: Request) -> Response:
+        entry = self.take(request)
+        kin = self.compute(entry, "analysis", takes.analysis)
         if kin.com is None:
             raise StudioError(404, "no centre of mass for this skeleton (its landmarks were not found)")
-        motion = cache.motion(entry)
+        motion = self.cache.motion(entry)
         p = takes.to_view(kin.com * (1.0 if kin.length_unit == "m" else motion.meters_per_unit), motion.up_axis)
         return Response(np.ascontiguousarray(p, dtype=np.float32).tobytes(), media_type="application/octet-stream")
 
-    def series(request: Request) -> Response:
-        entry = take(request)
-        kin = compute(entry, "analysis", takes.analysis)
+    def series(self, request: Request) -> Response:
+        kin = self.compute(self.take(request), "analysis", takes.analysis)
         joints = [j for j in request.query_params.get("joints", "").split(",") if j][:MAX_IDS]
         quantities = [q for q in request.query_params.get("q", "bend,speed,com_height,com_speed").split(",") if q]
         bad = [j for j in joints if j not in kin.joint_names] + [q for q in quantities if q not in takes.QUANTITIES]
@@ -107,27 +105,20 @@ def create_app(roots: list[Path], options: ReadOptions = ReadOptions(), out: Pat
             raise StudioError(400, f"unknown joint or quantity {bad[0]!r}")
         return JSONResponse(takes.series(kin, joints, quantities))
 
-    def glb(request: Request) -> Response:
-        entry = take(request)
-        try:
-            from usdmotion.io.gltf import glb_bytes
-        except ImportError:
-            raise StudioError(501, "this usdmotion has no GLB writer; showing the stick figure") from None
-        data = compute(entry, "glb", lambda m: cached_glb(entry, options, out, lambda: glb_bytes(m, mesh=True)))
+    def glb(self, request: Request) -> Response:
+        from usdmotion.io.gltf import glb_bytes
+
+        entry = self.take(request)
+        data = self.compute(entry, "glb",
+                            lambda m: cached_glb(entry, self.options, self.out, lambda: glb_bytes(m, mesh=True)))
         return Response(data, media_type="model/gltf-binary")
 
-    def compare_takes(request: Request) -> Response:
-        a, b = take(request, "a"), take(request, "b")
-        ma, mb = compute(a, "motion", None), compute(b, "motion", None)
-        mode = request.query_params.get("mode", "dtw")
-        try:
-            offset = float(request.query_params.get("offset", "0"))
-            frame = int(request.query_params.get("frame", "0"))
-        except ValueError:
-            raise StudioError(400, "offset must be seconds and frame a frame number") from None
-        if mode not in ("dtw", "offset") or not np.isfinite(offset):
-            raise StudioError(400, "mode must be dtw or offset, offset a finite number of seconds")
-        frame = min(max(frame, 0), ma.n_frames - 1)
+    def compare(self, request: Request) -> Response:
+        """Frame of ``b`` for every frame of ``a`` (``mode`` dtw, or offset by ``offset`` s) and the
+        4×4 matrix putting ``b`` on ``a`` at ``frame``."""
+        a, b = self.take(request, "a"), self.take(request, "b")
+        ma, mb = self.compute(a, "motion", None), self.compute(b, "motion", None)
+        mode, offset, frame = _compare_params(request, ma.n_frames)
         try:
             frame_map = (compare.dtw_frame_map(ma, mb) if mode == "dtw" else compare.offset_frame_map(ma, mb, offset))
             align = compare.spatial_alignment(ma, frame, mb, int(round(frame_map[frame])))
@@ -135,16 +126,34 @@ def create_app(roots: list[Path], options: ReadOptions = ReadOptions(), out: Pat
             raise StudioError(422, str(exc).splitlines()[0] if str(exc) else type(exc).__name__) from None
         return JSONResponse({"map": np.round(frame_map, 3).tolist(), "frame": frame, "align": align.tolist()})
 
-    api = [Route("/api/takes", take_list), Route("/api/meta", metadata), Route("/api/skeleton", skeleton),
-           Route("/api/positions", positions), Route("/api/com", com), Route("/api/series", series),
-           Route("/api/glb", glb), Route("/api/compare", compare_takes)]
-    routes = [Route("/", index), *api,
+
+def _compare_params(request: Request, n_frames: int) -> tuple[str, float, int]:
+    mode = request.query_params.get("mode", "dtw")
+    try:
+        offset = float(request.query_params.get("offset", "0"))
+        frame = int(request.query_params.get("frame", "0"))
+    except ValueError:
+        raise StudioError(400, "offset must be seconds and frame a frame number") from None
+    if mode not in ("dtw", "offset") or not np.isfinite(offset):
+        raise StudioError(400, "mode must be dtw or offset, offset a finite number of seconds")
+    return mode, offset, min(max(frame, 0), n_frames - 1)
+
+
+def create_app(roots: list[Path], options: ReadOptions = ReadOptions(), out: Path | None = None) -> Starlette:
+    """The studio over ``roots``; ``out`` is the only folder it may write to (created on first use)."""
+    cache = takes.TakeCache(options)
+    api = StudioApi(Library(roots, options, read=cache.motion), cache, options, out)
+
+    def index(request: Request) -> Response:
+        return FileResponse(WEB / "index.html", headers={"Cache-Control": "no-cache"})
+
+    routes = [Route("/", index), *api.routes(),
               Mount("/app", StaticFiles(directory=WEB, check_dir=False), name="app"),
               Mount("/vendor/three", StaticFiles(directory=NODE_MODULES / "three", check_dir=False), name="three"),
               Mount("/vendor/uplot", StaticFiles(directory=NODE_MODULES / "uplot", check_dir=False), name="uplot")]
     app = Starlette(routes=routes, exception_handlers={StudioError: _error_response})
     app.add_middleware(_Guard)
-    app.state.library = library
+    app.state.api = api
     return app
 
 
@@ -191,6 +200,8 @@ class _Guard:
             return await JSONResponse({"error": "read-only"}, status_code=405)(scope, receive, send)
         if not length.isdigit() or int(length) > MAX_BODY_BYTES:
             return await JSONResponse({"error": "request too large"}, status_code=413)(scope, receive, send)
+        if scope["path"].startswith(("/app/node_modules", "/app/package")):  # packages: under /vendor only
+            return await JSONResponse({"error": "not found"}, status_code=404)(scope, receive, send)
         start = time.perf_counter()
 
         async def timed_send(message) -> None:
