@@ -71,6 +71,7 @@ async function openTake(id, fresh) {
   state.take = id;
   library.select(id);
   $('player').hidden = false;
+  $('welcome').hidden = true;
   $('view-message').textContent = 'loading…';
   try {
     take = await loadTake(id);
