@@ -8,27 +8,21 @@ from typing import Annotated
 
 import typer
 
-from usdmotion.cli._options import (IgnoreJointPositions, InputPath, Lenient, RootOffset, RootOffsetChoice, UpAxis,
-                                    Units, read_input)
+from usdmotion.cli._options import InputPath, ReadOptions, reads_motion
 from usdmotion.cli.app import app
 
 
 @app.command()
+@reads_motion
 def convert(
     source: InputPath,
     output: Annotated[Path, typer.Argument(help="Output: .usda, .usdc, .usdz, .usd, .bvh, .glb or .gltf.", show_default=False)],
-    units: Units = None,
-    up_axis: UpAxis = None,
-    root_offset: RootOffset = RootOffsetChoice.auto,
-    lenient: Lenient = False,
-    ignore_joint_positions: IgnoreJointPositions = False,
     validate: Annotated[bool, typer.Option(help="Run pxr.UsdValidation on a USD output.")] = True,
     mesh: Annotated[bool, typer.Option("--mesh", help="Add a volumetric body mesh skinned to the skeleton "
                                                       "(USD and glTF outputs).")] = False,
     fps: Annotated[float | None, typer.Option("--fps", help="Resample to this frame rate first (e.g. 30 for a "
                                                             "smaller file).", show_default=False)] = None,
-    skin: Annotated[int | None, typer.Option("--skin", help="glTF input with several skins: the index of the one "
-                                                            "to read.", show_default=False)] = None,
+    read: ReadOptions = ReadOptions(),
 ) -> None:
     """Convert a motion between BVH, OpenUSD (UsdSkel) and glTF 2.0 (GLB)."""
     from usdmotion.cli._progress import progress
@@ -38,7 +32,7 @@ def convert(
     if source.resolve() == output.resolve():
         raise OutputError(f"{output}: output would overwrite the input")
     start = time.perf_counter()
-    motion = read_input(source, units, up_axis, root_offset, lenient, ignore_joint_positions, skin=skin)
+    motion = read.read(source)
     if fps is not None:
         from usdmotion.ops.edit.timewarp import resample
 
