@@ -43,9 +43,7 @@ def running_studio(roots: list[Path], units: str | None = "asf", out: Path | Non
     import uvicorn
 
     from usdmotion.studio.app import create_app
-    from usdmotion.studio.library import ReadOptions
-
-    app = create_app(roots, ReadOptions(units=units), out)
+    app = create_app(roots, {"units": units}, out)
     sock = socket.socket()
     sock.bind(("127.0.0.1", 0))
     server = uvicorn.Server(uvicorn.Config(app, log_level="warning"))

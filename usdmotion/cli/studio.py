@@ -2,16 +2,18 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
-from usdmotion.cli._options import UpAxis, Units
+from usdmotion.cli._options import ReadOptions, reads_motion
 from usdmotion.cli.app import app
 
 
 @app.command()
+@reads_motion
 def studio(
     paths: Annotated[list[Path] | None, typer.Argument(help="Library folders (searched with their subfolders) "
                                                             "or motion files. Default: the current folder.",
@@ -20,15 +22,12 @@ def studio(
     port: Annotated[int, typer.Option(help="Port to listen on (0: any free port).")] = 8765,
     open_browser: Annotated[bool, typer.Option("--open/--no-open", help="Open the app in the web browser.")] = True,
     out: Annotated[Path, typer.Option(help="The only folder the studio may write to.")] = Path("out/studio"),
-    units: Units = None,
-    up_axis: UpAxis = None,
+    read: ReadOptions = ReadOptions(),
 ) -> None:
     """Browse, play and compare takes in the web browser (Ctrl+C stops the server)."""
-    from usdmotion.studio.library import ReadOptions
     from usdmotion.studio.server import serve
 
     def ready(url: str) -> None:
         typer.echo(f"usdmotion studio: {url} (writes only under {out}; Ctrl+C to stop)", err=True)
 
-    options = ReadOptions(units=units, up_axis=up_axis.value if up_axis else None)
-    serve(paths or [Path(".")], host, port, out, options, open_browser, ready)
+    serve(paths or [Path(".")], host, port, out, dataclasses.asdict(read), open_browser, ready)

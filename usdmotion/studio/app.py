@@ -18,7 +18,7 @@ from starlette.routing import Mount, Route
 from starlette.staticfiles import StaticFiles
 
 from usdmotion.studio import compare, takes
-from usdmotion.studio.library import Entry, Library, ReadOptions, error_line
+from usdmotion.studio.library import Entry, Library, error_line, read_options
 
 WEB = Path(__file__).with_name("web")
 NODE_MODULES = WEB / "node_modules"
@@ -45,7 +45,7 @@ def missing_web_packages() -> list[str]:
 class StudioApi:
     """The JSON/binary endpoints, one method each, over one library and its take cache."""
 
-    def __init__(self, library: Library, cache: takes.TakeCache, options: ReadOptions, out: Path | None) -> None:
+    def __init__(self, library: Library, cache: takes.TakeCache, options: dict, out: Path | None) -> None:
         self.library, self.cache, self.options, self.out = library, cache, options, out
 
     def routes(self) -> list[Route]:
@@ -69,7 +69,7 @@ class StudioApi:
         return JSONResponse({"roots": [r.name for r in self.library.roots],
                              "takes": [{"id": e.id, "name": e.name, "size": e.size} for e in entries],
                              "quantities": {k: {"label": v[0], "unit": v[1]} for k, v in takes.QUANTITIES.items()},
-                             "units": self.options.units, "up_axis": self.options.up_axis,
+                             "read_options": self.options,
                              "out": str(self.out) if self.out else None})
 
     def meta(self, request: Request) -> Response:
@@ -139,8 +139,10 @@ def _compare_params(request: Request, n_frames: int) -> tuple[str, float, int]:
     return mode, offset, min(max(frame, 0), n_frames - 1)
 
 
-def create_app(roots: list[Path], options: ReadOptions = ReadOptions(), out: Path | None = None) -> Starlette:
-    """The studio over ``roots``; ``out`` is the only folder it may write to (created on first use)."""
+def create_app(roots: list[Path], options: dict | None = None, out: Path | None = None) -> Starlette:
+    """The studio over ``roots``, reading with ``options`` (:func:`usdmotion.io.read_motion`
+    keywords); ``out`` is the only folder it may write to (created on first use)."""
+    options = read_options(**(options or {}))
     cache = takes.TakeCache(options)
     api = StudioApi(Library(roots, options, read=cache.motion), cache, options, out)
 
@@ -157,7 +159,7 @@ def create_app(roots: list[Path], options: ReadOptions = ReadOptions(), out: Pat
     return app
 
 
-def cached_glb(entry: Entry, options: ReadOptions, out: Path | None, make) -> bytes:
+def cached_glb(entry: Entry, options: dict, out: Path | None, make) -> bytes:
     """The take's GLB from ``out/cache/glb`` (keyed by path, size, mtime and reading options), or
     ``make()`` written there atomically. Building the skinned body takes seconds; reopening must not."""
     import hashlib
@@ -166,7 +168,7 @@ def cached_glb(entry: Entry, options: ReadOptions, out: Path | None, make) -> by
 
     if out is None:
         return make()
-    key = f"{entry.path}|{entry.size}|{entry.mtime_ns}|{options.units}|{options.up_axis}|v1"
+    key = f"{entry.path}|{entry.size}|{entry.mtime_ns}|{sorted(options.items())}|v1"
     path = out / "cache" / "glb" / f"{hashlib.sha1(key.encode()).hexdigest()}.glb"
     if path.is_file():
         return path.read_bytes()

@@ -12,20 +12,18 @@ import threading
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
 
-from usdmotion.io import BVH_EXTENSIONS, USD_EXTENSIONS
+from usdmotion.io import BVH_EXTENSIONS, GLTF_EXTENSIONS, USD_EXTENSIONS
 
-MOTION_EXTENSIONS = BVH_EXTENSIONS + USD_EXTENSIONS
+MOTION_EXTENSIONS = BVH_EXTENSIONS + USD_EXTENSIONS + GLTF_EXTENSIONS
 #: Files larger than this are listed with an error instead of being read (a studio must
 #: not be taken down by one huge file). 512 MiB is several hours of 120 fps capture.
 MAX_FILE_BYTES = 512 * 1024 * 1024
 
 
-@dataclass(frozen=True)
-class ReadOptions:
-    """How BVH files are read (USD files carry their own units and up axis)."""
-
-    units: str | None = None
-    up_axis: str | None = None
+def read_options(**options) -> dict:
+    """Keyword arguments of :func:`usdmotion.io.read_motion` for every take (``units``,
+    ``up_axis``... as the CLI's reading options give them), ``None`` values left out."""
+    return {k: v for k, v in options.items() if v is not None}
 
 
 @dataclass(frozen=True)
@@ -42,11 +40,11 @@ class Entry:
 class Library:
     """Takes under ``roots`` (folders, searched recursively, or single files)."""
 
-    def __init__(self, roots: list[Path], options: ReadOptions = ReadOptions(), read=None) -> None:
+    def __init__(self, roots: list[Path], options: dict | None = None, read=None) -> None:
         self.roots = [Path(r).resolve() for r in roots]
-        self.options = options
+        self.options = options or {}
         #: ``read(entry) -> Motion``; the app passes its take cache so a take listed is already read
-        self.read = read or (lambda entry: read_take(entry, options))
+        self.read = read or (lambda entry: read_take(entry, self.options))
         self._meta: dict[tuple[str, int, int], dict] = {}
         self._lock = threading.Lock()
 
@@ -134,15 +132,16 @@ def describe_take(entry: Entry, read) -> dict:
         return {"error": error_line(entry, exc)}
 
 
-def read_take(entry: Entry, options: ReadOptions):
-    """Read a take with the studio's reading options (raises ``InputError`` for huge files)."""
+def read_take(entry: Entry, options: dict):
+    """Read a take with the studio's reading options (``read_motion`` keywords; raises
+    ``InputError`` for huge files)."""
     from usdmotion.errors import InputError
     from usdmotion.io import read_motion
 
     if entry.size > MAX_FILE_BYTES:
         raise InputError(entry.name, f"file is {entry.size:,} bytes; the studio reads files up to "
                                      f"{MAX_FILE_BYTES:,} bytes")
-    return read_motion(entry.path, units=options.units, up_axis=options.up_axis)
+    return read_motion(entry.path, **options)
 
 
 def error_line(entry: Entry, exc: BaseException) -> str:

@@ -6,7 +6,6 @@ import socket
 from pathlib import Path
 
 from usdmotion.errors import InputError, UsdMotionError
-from usdmotion.studio.library import ReadOptions
 
 
 def check_roots(paths: list[Path]) -> list[Path]:
@@ -21,9 +20,10 @@ def check_roots(paths: list[Path]) -> list[Path]:
     return paths
 
 
-def serve(paths: list[Path], host: str, port: int, out: Path, options: ReadOptions, open_browser: bool,
+def serve(paths: list[Path], host: str, port: int, out: Path, options: dict, open_browser: bool,
           ready=None) -> None:
-    """Serve the studio until interrupted; ``ready(url)`` is called once it listens."""
+    """Serve the studio until interrupted; ``options`` are :func:`usdmotion.io.read_motion`
+    keywords for every take; ``ready(url)`` is called once it listens."""
     import uvicorn
 
     from usdmotion.studio.app import create_app, missing_web_packages

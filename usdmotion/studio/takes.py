@@ -13,7 +13,7 @@ from collections import OrderedDict
 import numpy as np
 
 from usdmotion.motion import Motion
-from usdmotion.studio.library import Entry, ReadOptions, read_take
+from usdmotion.studio.library import Entry, read_take
 
 #: Quantities the plots offer: key → (label, unit). ``bend``/``speed`` are per joint.
 QUANTITIES = {
@@ -34,7 +34,7 @@ def to_view(points: np.ndarray, up_axis: str) -> np.ndarray:
 class TakeCache:
     """Motions and their analysis, read once per (path, size, mtime); a few kept (LRU)."""
 
-    def __init__(self, options: ReadOptions, size: int = 6) -> None:
+    def __init__(self, options: dict, size: int = 6) -> None:
         self.options = options
         self.size = size
         self._items: OrderedDict[tuple, dict] = OrderedDict()
