@@ -45,21 +45,27 @@ class TakeCache:
         with self._lock:
             slot = self._items.get(key)
             if slot is None:
-                slot = self._items[key] = {"lock": threading.Lock()}
+                slot = self._items[key] = {"locks": {}}
                 while len(self._items) > self.size:
                     self._items.popitem(last=False)
             self._items.move_to_end(key)
         return slot
 
+    def _computed(self, slot: dict, what: str, compute):
+        """``slot[what]``, computed once: one lock per value, so a slow value (the body) never
+        holds up a quick one (the positions) of the same take."""
+        with self._lock:
+            lock = slot["locks"].setdefault(what, threading.Lock())
+        with lock:
+            if what not in slot:
+                slot[what] = compute()
+            return slot[what]
+
     def get(self, entry: Entry, what: str, compute):
         """``compute(motion)`` for this take, cached under ``what`` (the motion under ``"motion"``)."""
         slot = self._slot(entry)
-        with slot["lock"]:
-            if "motion" not in slot:
-                slot["motion"] = read_take(entry, self.options)
-            if what not in slot:
-                slot[what] = compute(slot["motion"]) if what != "motion" else slot["motion"]
-            return slot[what]
+        motion = self._computed(slot, "motion", lambda: read_take(entry, self.options))
+        return motion if what == "motion" else self._computed(slot, what, lambda: compute(motion))
 
     def motion(self, entry: Entry) -> Motion:
         return self.get(entry, "motion", None)

@@ -38,10 +38,26 @@ export class Player {
     this.dirty = true;
     new ResizeObserver(() => this.resize()).observe(canvas);
     this.resize();
+    this.warmUp();
     this.lastTick = performance.now();
     // a hidden tab gets no animation frames: resume from where it was, not from where it would be
     document.addEventListener('visibilitychange', () => { this.lastTick = performance.now(); });
     this.renderer.setAnimationLoop(now => this.tick(now));
+  }
+
+  /** Compile the figure's shaders before a take is opened (software WebGL takes a while):
+   *  a two-joint figure, drawn once off to the side and dropped. */
+  warmUp() {
+    const take = {joint_names: ['a', 'b'], parents: [-1, 0], frames: 1, fps: 1,
+                  positions: new Float32Array([0, 0, 0, 0, 1, 0])};
+    for (const opacity of [1, 0.7]) {
+      const figure = new Figure(take, {opacity});
+      figure.setFrame(0);
+      this.scene.add(figure.group);
+      this.renderer.render(this.scene, this.camera);
+      this.scene.remove(figure.group);
+      figure.dispose();
+    }
   }
 
   resize() {
