@@ -329,11 +329,13 @@ def test_two_skins_pick_one_with_an_option(good, tmp_path, capsys):
     two["skins"].append({"name": "Other", "joints": two["skins"][0]["joints"][1:5]})
     path = tmp_path / "two.glb"
     path.write_bytes(_glb(two, binary))
-    assert main(["convert", str(path), str(tmp_path / "a.bvh"), "--skin", "0"]) == 0
-    assert main(["convert", str(path), str(tmp_path / "b.bvh"), "--skin", "1"]) == 0
+    assert main(["convert", str(path), str(tmp_path / "a.bvh"), "--skeleton", "0"]) == 0
+    assert main(["convert", str(path), str(tmp_path / "b.bvh"), "--skeleton", "1"]) == 0
+    assert main(["info", str(path), "--skeleton", "Other"]) == 0  # every reading command, by name too
     assert read_motion(tmp_path / "b.bvh").n_joints == 4
-    assert main(["convert", str(path), str(tmp_path / "c.bvh"), "--skin", "5"]) == 2
-    assert "--skin 5" in capsys.readouterr().err
+    assert read_motion(tmp_path / "a.bvh").n_joints == read_motion(path, skeleton="0").n_joints > 4
+    assert main(["convert", str(path), str(tmp_path / "c.bvh"), "--skeleton", "5"]) == 2
+    assert "--skeleton 5: no such skin" in capsys.readouterr().err
     assert not (tmp_path / "c.bvh").exists()
 
 
@@ -342,3 +344,166 @@ def test_build_gltf_names_every_joint_node(shared_file):
     gltf = build_gltf(motion)
     assert [gltf.nodes[j].name for j in gltf.skins[0].joints] == list(motion.joint_names)
     assert any(":" in n for n in motion.joint_names)
+
+
+def _append(document: dict, binary: bytes, array: np.ndarray, kind: str) -> tuple[bytes, int]:
+    """Append float32 ``array`` to the binary chunk as a new bufferView + accessor; returns its index."""
+    data = np.ascontiguousarray(array, "<f4").tobytes()
+    binary += b"\0" * (-len(binary) % 4)
+    document["bufferViews"].append({"buffer": 0, "byteOffset": len(binary), "byteLength": len(data)})
+    accessor = {"bufferView": len(document["bufferViews"]) - 1, "componentType": 5126, "count": len(array),
+                "type": kind}
+    if kind == "SCALAR":
+        accessor.update(min=[float(array.min())], max=[float(array.max())])
+    document["accessors"].append(accessor)
+    binary += data
+    document["buffers"][0]["byteLength"] = len(binary)
+    return binary, len(document["accessors"]) - 1
+
+
+def test_reader_samples_step_cubic_and_sparse_keys(good, tmp_path):
+    """Foreign files key channels differently: STEP and CUBICSPLINE samplers, and channels
+    with fewer keys than the others (Blender drops constant keys) are sampled at the file's
+    frames: keys give their values, a 2-key LINEAR channel is interpolated in between."""
+    import pygltflib
+
+    document, binary = good
+    path = tmp_path / "base.glb"
+    path.write_bytes(_glb(document, binary))
+    base = read_motion(path)
+
+    step = json.loads(json.dumps(document))
+    for sampler in step["animations"][0]["samplers"]:
+        sampler["interpolation"] = "STEP"
+    (tmp_path / "step.glb").write_bytes(_glb(step, binary))
+    np.testing.assert_allclose(joint_positions(read_motion(tmp_path / "step.glb")), joint_positions(base),
+                               atol=1e-5)  # cm
+
+    cubic, blob = json.loads(json.dumps(document)), binary
+    gltf = pygltflib.GLTF2.load_from_bytes(_glb(document, binary))
+    for sampler in cubic["animations"][0]["samplers"]:
+        values = gltf_accessor(gltf, sampler["output"])
+        tangents = np.zeros_like(values)
+        keyed = np.stack([tangents, values, tangents], 1).reshape(-1, values.shape[1])
+        blob, sampler["output"] = _append(cubic, blob, keyed, "VEC4" if values.shape[1] == 4 else "VEC3")
+        sampler["interpolation"] = "CUBICSPLINE"
+    (tmp_path / "cubic.glb").write_bytes(_glb(cubic, blob))
+    np.testing.assert_allclose(joint_positions(read_motion(tmp_path / "cubic.glb")), joint_positions(base), atol=1e-5)
+
+    sparse = json.loads(json.dumps(document))
+    channel = next(c for c in sparse["animations"][0]["channels"] if c["target"]["path"] == "translation")
+    sampler = sparse["animations"][0]["samplers"][channel["sampler"]]
+    times = gltf_accessor(gltf, sampler["input"])[:, 0]
+    values = gltf_accessor(gltf, sampler["output"])
+    blob, sampler["input"] = _append(sparse, binary, times[[0, -1]], "SCALAR")
+    blob, sampler["output"] = _append(sparse, blob, values[[0, -1]], "VEC3")
+    (tmp_path / "sparse.glb").write_bytes(_glb(sparse, blob))
+    motion = read_motion(tmp_path / "sparse.glb")
+    assert motion.n_frames == base.n_frames
+    u = (times - times[0]) / (times[-1] - times[0])
+    expected = (values[0] + u[:, None] * (values[-1] - values[0])) / base.meters_per_unit  # back to the source's cm
+    np.testing.assert_allclose(motion.root_translation, expected, rtol=1e-6, atol=1e-4)
+    np.testing.assert_allclose(motion.rotations, base.rotations, atol=1e-12)
+
+
+def gltf_accessor(gltf, index: int) -> np.ndarray:
+    """A float accessor ``(count, width)`` of a pygltflib document (tightly packed views only)."""
+    a = gltf.accessors[index]
+    view = gltf.bufferViews[a.bufferView]
+    width = {"SCALAR": 1, "VEC3": 3, "VEC4": 4}[a.type]
+    start = (view.byteOffset or 0) + (a.byteOffset or 0)
+    return np.frombuffer(gltf.binary_blob(), "<f4", a.count * width, start).reshape(a.count, width).astype(float)
+
+
+def test_nodes_above_the_skeleton_are_folded_into_the_root(good, tmp_path):
+    """Mixamo/FBX-converted files put the skeleton under an "Armature" node with a rotation
+    and a 0.01 scale (centimetre joints): world positions must include that transform."""
+    document, binary = good
+    path = tmp_path / "base.glb"
+    path.write_bytes(_glb(document, binary))
+    base = read_motion(path)
+    wrapped = json.loads(json.dumps(document))
+    del wrapped["skins"][0]["extras"]  # a foreign file: read in glTF's metres, Y up
+    (tmp_path / "plain.glb").write_bytes(_glb(wrapped, binary))
+    plain = read_motion(tmp_path / "plain.glb")
+    angle = 0.3
+    wrapped["nodes"].append({"name": "Armature", "children": [0], "scale": [0.01, 0.01, 0.01],
+                             "rotation": [0.0, float(np.sin(angle / 2)), 0.0, float(np.cos(angle / 2))],
+                             "translation": [1.0, 0.0, 2.0]})
+    wrapped["scenes"][0]["nodes"] = [len(wrapped["nodes"]) - 1]
+    # the joints' own numbers become centimetres
+    for node in wrapped["nodes"][:-1]:
+        if "translation" in node:
+            node["translation"] = [100 * v for v in node["translation"]]
+    grown = bytearray(binary)
+    for channel in wrapped["animations"][0]["channels"]:
+        if channel["target"]["path"] == "translation":
+            a = wrapped["accessors"][wrapped["animations"][0]["samplers"][channel["sampler"]]["output"]]
+            start = wrapped["bufferViews"][a["bufferView"]].get("byteOffset", 0) + a.get("byteOffset", 0)
+            values = np.frombuffer(binary, "<f4", a["count"] * 3, start) * 100
+            grown[start:start + values.nbytes] = values.astype("<f4").tobytes()
+    (tmp_path / "wrapped.glb").write_bytes(_glb(wrapped, bytes(grown)))
+    motion = read_motion(tmp_path / "wrapped.glb")
+    assert motion.meters_per_unit == 1.0 and plain.meters_per_unit == 1.0
+    turn = Rotation.from_rotvec([0.0, angle, 0.0]).as_matrix()
+    expected = joint_positions(plain) @ turn.T + [1.0, 0.0, 2.0]
+    np.testing.assert_allclose(joint_positions(motion), expected, atol=1e-6 * skeleton_height(plain))
+    assert np.abs(joint_positions(plain) - to_gltf_space(joint_positions(base), base)).max() < 1e-6
+
+
+def test_mutated_documents_never_crash(good, tmp_path):
+    """Random wrong values and deleted keys in the JSON (pygltflib checks no types), node
+    cycles and absurd key times: every read either succeeds or raises one UsdMotionError."""
+    import random
+
+    from usdmotion.errors import UsdMotionError
+
+    document, binary = good
+    cycle = json.loads(json.dumps(document))
+    cycle["nodes"][1].setdefault("children", []).append(0)
+    huge = json.loads(json.dumps(document))
+    times = huge["animations"][0]["samplers"][0]["input"]
+    grown = bytearray(binary)
+    a = huge["accessors"][times]
+    start = huge["bufferViews"][a["bufferView"]].get("byteOffset", 0) + a.get("byteOffset", 0)
+    grown[start + 4 * (a["count"] - 1):start + 4 * a["count"]] = struct.pack("<f", 1e9)
+    huge["accessors"][times]["max"] = [1e9]
+    cases = {"cycle": (cycle, binary, "cycle"), "huge": (huge, bytes(grown), "more than usdmotion reads")}
+    for name, (doc, blob, message) in cases.items():
+        (tmp_path / f"{name}.glb").write_bytes(_glb(doc, blob))
+        with pytest.raises(UsdMotionError, match=message):
+            read_motion(tmp_path / f"{name}.glb")
+
+    def leaves(node, trail=()):
+        items = node.items() if isinstance(node, dict) else enumerate(node) if isinstance(node, list) else ()
+        for key, value in items:
+            yield trail + (key,)
+            yield from leaves(value, trail + (key,))
+
+    paths = list(leaves(document))
+    rnd = random.Random(12)
+    values = [None, -1, 0, 1, 10 ** 9, 2.5, "x", [], {}, [1, 2], True]
+    outcomes = {"read": 0, "error": 0}
+    for trial in range(60):
+        doc = json.loads(json.dumps(document))
+        for _ in range(rnd.randint(1, 3)):
+            *parent_keys, last = rnd.choice(paths)
+            try:
+                parent = doc
+                for key in parent_keys:
+                    parent = parent[key]
+                if isinstance(parent, dict) and rnd.random() < 0.3:
+                    del parent[last]
+                else:
+                    parent[last] = rnd.choice(values)
+            except (KeyError, IndexError, TypeError):
+                pass  # an earlier mutation removed the path
+        path = tmp_path / "mutated.glb"
+        path.write_bytes(_glb(doc, binary))
+        try:
+            read_motion(path)
+            outcomes["read"] += 1
+        except UsdMotionError as exc:
+            assert str(exc).startswith(f"{path}: ") and "\n" not in str(exc)
+            outcomes["error"] += 1
+    assert outcomes["error"] > 10 and sum(outcomes.values()) == 60, outcomes

@@ -11,7 +11,7 @@ handles every job, because starting Blender is the slow part::
 * ``{"kind": "gltf", "path": "a.glb", "fps": 120.0, "frames": [0, 10, ...]}``: reset to an
   empty scene, set the scene rate to ``fps`` (Blender's importer turns glTF seconds into
   frames with it: time ``i / fps`` → frame ``i``), ``bpy.ops.import_scene.gltf`` with its
-  default options, then record armatures and meshes at ``frames`` (``usd_probe`` helpers:
+  default options (see ``_set_fps``), then record armatures and meshes at ``frames`` (``usd_probe`` helpers:
   bone names, evaluated world heads, deformed world vertices).
 * ``{"kind": "bvh_export", "path": "a.bvh", "out": "b.glb", "frames": [...]}``: Blender's
   BVH importer (scene rate and range from the file), record the armature at ``frames``,
@@ -33,9 +33,13 @@ from usd_probe import armature_info, captured_output, mesh_info, record_frame  #
 
 
 def _set_fps(scene, fps: float) -> None:
+    """Make Blender's glTF importer put time ``i / fps`` at frame ``i``. The importer (4.5,
+    ``imp/animation_node.py``) converts with ``frame = t · render.fps · render.fps_base``
+    (a product, where the scene rate is the quotient), so for a non-integer rate such as
+    119.88 the base is ``fps / round(fps)``; for integer rates both readings agree."""
     whole = max(1, round(fps))
     scene.render.fps = whole
-    scene.render.fps_base = whole / fps
+    scene.render.fps_base = fps / whole
 
 
 def _record(bpy, scene, frames, result: dict) -> None:

@@ -29,9 +29,9 @@ InputPath = Annotated[Path, typer.Argument(help="Input motion: .bvh, .usd, .usda
                                            show_default=False)]
 Units = Annotated[str | None, typer.Option(
     "--units", help="Length unit of a BVH file: cm, m, mm, in, ft, asf (CMU, 1/0.45 in), or metres per "
-                    "unit as a number. Default: cm for BVH; the stage's for USD.", show_default=False)]
+                    "unit as a number. Default: cm for BVH; the file's for USD and glTF.", show_default=False)]
 UpAxis = Annotated[UpAxisChoice | None, typer.Option(
-    "--up-axis", help="Vertical axis of a BVH file (default Y); overrides a USD stage's.", show_default=False,
+    "--up-axis", help="Vertical axis of a BVH file (default Y); overrides a USD or glTF file's.", show_default=False,
     case_sensitive=False)]
 RootOffset = Annotated[RootOffsetChoice, typer.Option(
     "--root-offset", help="BVH root OFFSET: 'add' to the root position channels (BVH spec), 'replace' by "
@@ -61,10 +61,9 @@ def parse_start_stop(text: str | None) -> tuple[int | None, int | None]:
 
 
 Skeleton = Annotated[str | None, typer.Option(
-    "--skeleton", help="The ASF skeleton file for .amc input, or the Skeleton prim path for a USD stage with "
-                       "several skeletons.", show_default=False)]
-Skin = Annotated[int | None, typer.Option(
-    "--skin", help="glTF input with several skins: the index of the one to read.", show_default=False)]
+    "--skeleton", help="The ASF skeleton file for .amc input, the Skeleton prim path for a USD stage with "
+                       "several skeletons, or the skin (index or name) of a glTF file with several.",
+    show_default=False)]
 
 
 @dataclass(frozen=True)
@@ -81,7 +80,6 @@ class ReadOptions:
     lenient: bool = False
     ignore_joint_positions: bool = False
     skeleton: str | None = None
-    skin: int | None = None
 
     def read(self, path: Path):
         """The motion in ``path`` (progress shown for slow files)."""
@@ -96,7 +94,7 @@ class ReadOptions:
 #: The parameters :func:`reads_motion` adds to a command: (name, annotation, default).
 READ_PARAMETERS = (("units", Units, None), ("up_axis", UpAxis, None), ("root_offset", RootOffset, RootOffsetChoice.auto),
                    ("lenient", Lenient, False), ("ignore_joint_positions", IgnoreJointPositions, False),
-                   ("skeleton", Skeleton, None), ("skin", Skin, None))
+                   ("skeleton", Skeleton, None))
 
 
 def option_group(parameters: tuple, into: str, group: type) -> Callable[[Callable], Callable]:
@@ -126,6 +124,6 @@ def option_group(parameters: tuple, into: str, group: type) -> Callable[[Callabl
 
 
 #: Gives a command the shared reading options (``--units``, ``--up-axis``, ``--root-offset``,
-#: ``--lenient``, ``--ignore-joint-positions``, ``--skeleton``, ``--skin``) as ``read: ReadOptions``; it
+#: ``--lenient``, ``--ignore-joint-positions``, ``--skeleton``) as ``read: ReadOptions``; it
 #: reads with ``read.read(path)``.
 reads_motion = option_group(READ_PARAMETERS, "read", ReadOptions)

@@ -16,7 +16,8 @@ from usdmotion.cli.app import app
 @reads_motion
 def convert(
     source: InputPath,
-    output: Annotated[Path, typer.Argument(help="Output: .usda, .usdc, .usdz, .usd, .bvh, .glb or .gltf.", show_default=False)],
+    output: Annotated[Path, typer.Argument(help="Output: .usda, .usdc, .usdz, .usd, .bvh, .glb or .gltf.",
+                                           show_default=False)],
     validate: Annotated[bool, typer.Option(help="Run pxr.UsdValidation on a USD output.")] = True,
     mesh: Annotated[bool, typer.Option("--mesh", help="Add a volumetric body mesh skinned to the skeleton "
                                                       "(USD and glTF outputs).")] = False,
@@ -38,7 +39,6 @@ def convert(
 
         motion = resample(motion, fps)
     options = {}
-    is_gltf = output.suffix.lower() in (".glb", ".gltf")
     if mesh:
         from usdmotion.skin import build_body
 
@@ -46,7 +46,7 @@ def convert(
             raise OutputError(f"{output}: --mesh needs a USD or glTF output (.usd, .usda, .usdc, .usdz, .glb, .gltf)")
         with progress("building the body mesh"):
             body = build_body(motion)
-        if is_gltf:
+        if output.suffix.lower() in (".glb", ".gltf"):
             options["body"] = body
         else:
             from usdmotion.io.usd_mesh import body_decorator

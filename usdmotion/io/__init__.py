@@ -32,13 +32,15 @@ def _kind(path: Path) -> str | None:
 
 def read_motion(path: str | os.PathLike, root_offset: str = "auto", units: str | float | None = None,
                 up_axis: str | None = None, lenient: bool = False, ignore_joint_positions: bool = False,
-                skeleton: str | None = None, skin: int | None = None) -> Motion:
+                skeleton: str | None = None) -> Motion:
     """Read a BVH, UsdSkel or glTF 2.0 (.glb/.gltf) file.
 
     For BVH, ``units`` (default ``"cm"``) and ``up_axis`` (default ``"Y"``) state what the
-    file does not; for USD they come from the stage and, if given, override it.
-    ``skeleton`` names the ASF skeleton file of ``.amc`` input or the Skeleton prim path
-    of a USD stage with several skeletons; inputs that cannot take it raise ``InputError``.
+    file does not; for USD and glTF they come from the file (glTF: metres, Y up, or the
+    source's where usdmotion wrote it) and, if given, override it.
+    ``skeleton`` names the ASF skeleton file of ``.amc`` input, the Skeleton prim path
+    of a USD stage with several skeletons, or the skin (index or name) of a glTF file with
+    several; inputs that cannot take it raise ``InputError``.
     """
     path = Path(path)
     kind = _kind(path)
@@ -47,8 +49,6 @@ def read_motion(path: str | os.PathLike, root_offset: str = "auto", units: str |
             raise InputError(path, "--skeleton does not apply to BVH input (a BVH file holds one skeleton)")
         if kind == "usd":
             raise InputError(path, "--skeleton: choosing a Skeleton prim of a USD stage is not supported yet")
-        if kind == "gltf":
-            raise InputError(path, "--skeleton does not apply to glTF input (use --skin to pick a skin)")
     if kind == "bvh":
         from usdmotion.io.bvh import read_bvh
 
@@ -61,7 +61,7 @@ def read_motion(path: str | os.PathLike, root_offset: str = "auto", units: str |
     if kind == "gltf":
         from usdmotion.io.gltf_read import read_gltf
 
-        return read_gltf(path, skin=skin)
+        return override_units_axis(read_gltf(path, skin=skeleton), units, up_axis)
     raise InputError(path, f"unknown input format {path.suffix!r} (use {KNOWN})")
 
 

@@ -5,9 +5,9 @@ animation of those nodes' rotation / translation. The reader
 
 * checks the container itself (GLB header and chunks, JSON, buffer sizes, accessor ranges,
   finite values) and turns every problem into one :class:`~usdmotion.errors.InputError`;
-* takes the joints of the skin (``skin=`` picks one of several), plus any node between
-  them and their lowest common ancestor, parents before children; the transforms of the
-  nodes above that root are folded into the root;
+* takes the joints of the skin (``skin=``, the CLI's ``--skeleton``, picks one of several),
+  plus any node between them and their lowest common ancestor, parents before children;
+  the transforms of the nodes above that root are folded into the root;
 * samples every channel (LINEAR, STEP, CUBICSPLINE) at ``t0 + i / fps``, ``fps`` being the
   one usdmotion wrote (``skins[s].extras.usdmotion.fps``) or the median key spacing;
 * returns metres, Y up, unless usdmotion wrote the file: then the source's units, up axis,
@@ -25,16 +25,23 @@ from pathlib import Path
 
 import numpy as np
 
-from usdmotion.errors import InputError, UsdMotionWarning
-from usdmotion.io.gltf import EXTRAS_KEY, up_rotation
+from usdmotion.errors import InputError, UsdMotionError, UsdMotionWarning
 from usdmotion.motion import Motion
-from usdmotion.rotations import (matrix_to_quat, quat_conjugate, quat_mul, quat_normalize, quat_rotate, quat_slerp,
-                                 xyzw_to_wxyz)
+from usdmotion.rotations import (axis_angle_quat, matrix_to_quat, quat_conjugate, quat_mul, quat_normalize,
+                                 quat_rotate, quat_slerp, xyzw_to_wxyz)
 
 GLB_MAGIC = b"glTF"
+EXTRAS_KEY = "usdmotion"  # skins[s].extras[EXTRAS_KEY]: what usdmotion keeps of the source (see io.gltf)
 _JSON_CHUNK, _BIN_CHUNK = 0x4E4F534A, 0x004E4942
 _COMPONENTS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
 _DTYPES = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16, 5125: np.uint32, 5126: np.float32}
+
+
+def up_rotation(up_axis: str) -> np.ndarray:
+    """wxyz quaternion ``(4,)`` taking ``up_axis``-up coordinates to glTF's Y-up (``Rx(-90°)`` for Z)."""
+    if up_axis == "Z":
+        return axis_angle_quat("X", np.float64(-np.pi / 2))
+    return np.array([1.0, 0.0, 0.0, 0.0])
 
 
 def _glb_chunks(path: Path, data: bytes) -> tuple[bytes, bytes | None]:
@@ -164,20 +171,29 @@ def _accessor(path: Path, gltf, buffers: list[bytes], index: int) -> np.ndarray:
 # ------------------------------------------------------------------------ skeleton
 
 
-def _parents(gltf) -> np.ndarray:
-    """Parent node of every node ``(N,)`` (-1: none)."""
+def _parents(path: Path, gltf) -> np.ndarray:
+    """Parent node of every node ``(N,)`` (-1: none); a node with two parents is an error."""
     parents = np.full(len(gltf.nodes or []), -1)
     for n, node in enumerate(gltf.nodes or []):
-        for c in node.children or []:
-            if 0 <= c < len(parents):
-                parents[c] = n
+        children = node.children or []
+        if not isinstance(children, list) or not all(type(c) is int for c in children):
+            raise InputError(path, f"node {n}: children must be a list of node indices")
+        for c in children:
+            if not 0 <= c < len(parents):
+                raise InputError(path, f"node {n} has a child {c} that does not exist")
+            if parents[c] >= 0 or c == n:
+                raise InputError(path, f"node {c} has two parents (or is its own child); glTF nodes form trees")
+            parents[c] = n
     return parents
 
 
-def _ancestors(node: int, parents: np.ndarray) -> list[int]:
+def _ancestors(path: Path, node: int, parents: np.ndarray) -> list[int]:
+    """``[node, parent, …, scene root]``; a cycle is an error."""
     chain = [node]
-    while parents[chain[-1]] >= 0 and len(chain) <= len(parents):
+    while parents[chain[-1]] >= 0:
         chain.append(int(parents[chain[-1]]))
+        if len(chain) > len(parents):
+            raise InputError(path, f"node {node}: its ancestors form a cycle")
     return chain
 
 
@@ -196,7 +212,7 @@ def _node_trs(path: Path, node) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return quat_normalize(rotation), translation, scale
 
 
-def _pick_skin(path: Path, gltf, skin: int | None) -> int:
+def _pick_skin(path: Path, gltf, skin: str | int | None) -> int:
     skins = gltf.skins or []
     if not skins:
         paths = {c.target.path for a in gltf.animations or [] for c in a.channels or [] if c.target is not None}
@@ -205,25 +221,30 @@ def _pick_skin(path: Path, gltf, skin: int | None) -> int:
                                    "skeletal animation (a skin with joints and an animation of them)")
         raise InputError(path, "no skin in this glTF: usdmotion reads skeletal animation "
                                "(a skin with joints and an animation of them)")
+    listing = ", ".join(f"{i} {s.name or '(unnamed)'!r} ({len(s.joints or [])} joints)" for i, s in enumerate(skins))
     if skin is not None:
-        if not 0 <= skin < len(skins):
-            raise InputError(path, f"--skin {skin}: the file has skins 0…{len(skins) - 1}")
-        return skin
+        text = str(skin).strip()
+        if text.isdigit() and 0 <= int(text) < len(skins):
+            return int(text)
+        named = [i for i, s in enumerate(skins) if s.name == text]
+        if named:
+            return named[0]
+        raise InputError(path, f"--skeleton {text}: no such skin; the file has {listing}")
     distinct = {tuple(s.joints or []) for s in skins}
     if len(distinct) > 1:
-        listing = ", ".join(f"{i} {s.name or '(unnamed)'!r} ({len(s.joints or [])} joints)"
-                            for i, s in enumerate(skins))
-        raise InputError(path, f"{len(skins)} skins with different joints ({listing}): choose one with --skin N")
+        raise InputError(path, f"{len(skins)} skins with different joints ({listing}): choose one with "
+                               "--skeleton INDEX|NAME")
     return 0
 
 
 def _skeleton(path: Path, gltf, skin_index: int) -> tuple[list[int], np.ndarray]:
     """Joint nodes in parents-first order ``[node, ...]`` and their parent indices ``(J,)``."""
-    node_parents = _parents(gltf)
-    joints = [int(j) for j in gltf.skins[skin_index].joints or []]
-    if not joints or any(not 0 <= j < len(node_parents) for j in joints):
+    node_parents = _parents(path, gltf)
+    joints = gltf.skins[skin_index].joints or []
+    if not joints or not isinstance(joints, list) or any(type(j) is not int or not 0 <= j < len(node_parents)
+                                                         for j in joints):
         raise InputError(path, f"skin {skin_index} has no joints or names a node that does not exist")
-    chains = [_ancestors(j, node_parents)[::-1] for j in joints]  # scene root … joint
+    chains = [_ancestors(path, j, node_parents)[::-1] for j in joints]  # scene root … joint
     common = 0
     while all(len(c) > common for c in chains) and len({c[common] for c in chains}) == 1:
         common += 1
@@ -258,7 +279,7 @@ def _names(gltf, order: list[int]) -> tuple[str, ...]:
 def _root_world(path: Path, gltf, root: int) -> tuple[np.ndarray, np.ndarray, float]:
     """World ``(rotation wxyz, translation, uniform scale)`` of the nodes above ``root``."""
     q, t, s = np.array([1.0, 0, 0, 0]), np.zeros(3), 1.0
-    for n in _ancestors(root, _parents(gltf))[1:]:  # root's parent … scene root
+    for n in _ancestors(path, root, _parents(path, gltf))[1:]:  # root's parent … scene root
         nq, nt, ns = _node_trs(path, gltf.nodes[n])
         if np.ptp(ns) > 1e-6 * max(abs(ns).max(), 1e-12):
             warnings.warn(f"{path}: node {gltf.nodes[n].name!r} above the skeleton has a non-uniform scale; "
@@ -292,8 +313,11 @@ def _pick_animation(path: Path, gltf, joint_nodes: set[int]) -> int:
 
 
 def _sample(times: np.ndarray, keys: np.ndarray, values: np.ndarray, interpolation: str,
-            rotation: bool) -> np.ndarray:
-    """One channel at ``times (F,)``: ``keys (K,)``, ``values (K, C)`` (``(3K, C)`` for CUBICSPLINE)."""
+            rotation: bool, tolerance: float) -> np.ndarray:
+    """One channel at ``times (F,)``: ``keys (K,)``, ``values (K, C)`` (``(3K, C)`` for CUBICSPLINE).
+
+    A key within ``tolerance`` seconds of a time counts as reached (float32 key times are
+    never exactly ``i / fps``; a STEP channel must not fall back to the previous key)."""
     if interpolation == "CUBICSPLINE":
         a, v, b = values[0::3], values[1::3], values[2::3]
     else:
@@ -301,43 +325,74 @@ def _sample(times: np.ndarray, keys: np.ndarray, values: np.ndarray, interpolati
     if len(keys) == 1:
         out = np.repeat(v[:1], len(times), axis=0)
         return quat_normalize(out) if rotation else out
-    i = np.clip(np.searchsorted(keys, times, side="right") - 1, 0, len(keys) - 2)
+    i = np.clip(np.searchsorted(keys, times + tolerance, side="right") - 1, 0, len(keys) - 2)
     dt = keys[i + 1] - keys[i]
     u = np.clip((times - keys[i]) / np.where(dt > 0, dt, 1.0), 0.0, 1.0)[:, None]
     if interpolation == "STEP":
-        out = np.where(u >= 1.0, v[i + 1], v[i])
+        out = np.where((times + tolerance >= keys[i + 1])[:, None], v[i + 1], v[i])
     elif interpolation == "CUBICSPLINE":
         u2, u3, d = u * u, u * u * u, dt[:, None]
         out = ((2 * u3 - 3 * u2 + 1) * v[i] + (u3 - 2 * u2 + u) * d * b[i]
                + (-2 * u3 + 3 * u2) * v[i + 1] + (u3 - u2) * d * a[i + 1])
-    elif rotation:
-        return quat_slerp(quat_normalize(v[i]), quat_normalize(v[i + 1]), u[:, 0])
+    elif rotation:  # slerp only between keys: frames on a key (every frame, in most files) take it
+        on_key = np.abs(times - keys[i]) <= tolerance
+        on_next = ~on_key & (np.abs(times - keys[i + 1]) <= tolerance)
+        out = np.where(on_next[:, None], v[i + 1], v[i])
+        between = ~(on_key | on_next)
+        if between.any():
+            out[between] = quat_slerp(quat_normalize(v[i][between]), quat_normalize(v[i + 1][between]),
+                                      u[between, 0])
     else:
         out = v[i] + u * (v[i + 1] - v[i])
     return quat_normalize(out) if rotation else out
 
 
-def _frame_times(keys: list[np.ndarray], fps: float | None) -> tuple[np.ndarray, float]:
+MAX_SAMPLES = 50_000_000  # frames × joints read from one glTF animation (~1.6 GB of rotations)
+
+
+def _frame_times(path: Path, keys: list[np.ndarray], fps: float | None, n_joints: int) -> tuple[np.ndarray, float]:
+    """Frame times ``t0 + i / fps`` ``(F,)`` covering every channel's keys, and ``fps``."""
     start = min(float(k[0]) for k in keys)
     end = max(float(k[-1]) for k in keys)
     if fps is None:
-        steps = np.concatenate([np.diff(k) for k in keys])
-        steps = steps[steps > 1e-7]
-        fps = 1.0 / float(np.median(steps)) if steps.size else 30.0
-        if abs(fps - round(fps)) < 1e-3 * fps:
+        longest = max(keys, key=len)
+        steps = np.diff(longest)
+        if steps.size and steps.min() > 0 and np.ptp(steps) < 1e-3 * steps.mean():
+            fps = (len(longest) - 1) / float(longest[-1] - longest[0])  # evenly sampled: the exact rate
+        else:
+            steps = np.concatenate([np.diff(k) for k in keys])
+            steps = steps[steps > 1e-7]
+            fps = 1.0 / float(np.median(steps)) if steps.size else 30.0
+        if abs(fps - round(fps)) < 1e-6 * fps:
             fps = float(round(fps))
-    count = int(np.floor((end - start) * fps + 1e-3)) + 1
-    return start + np.arange(count) / fps, fps
+    count = (end - start) * fps + 1e-3
+    if not np.isfinite(count) or (count + 1) * n_joints > MAX_SAMPLES:
+        raise InputError(path, f"the animation spans {end - start:.6g} s at {fps:.6g} fps: {count:.3g} frames of "
+                               f"{n_joints} joints, more than usdmotion reads ({MAX_SAMPLES:,} joint samples)")
+    return start + np.arange(int(count) + 1) / fps, fps
 
 
-def read_gltf(path: str | os.PathLike, skin: int | None = None) -> Motion:
-    """Read the skin ``skin`` (default: the only one) of a glTF 2.0 file and its animation.
+def read_gltf(path: str | os.PathLike, skin: str | int | None = None) -> Motion:
+    """Read the skin ``skin`` (index or name; default: the only one) of a glTF 2.0 file and
+    its animation.
 
     Raises:
         InputError: unreadable container, no skin, several different skins and no
-            ``skin``, no skeletal animation (or morph-target weights only), bad accessors.
+            ``skin``, no skeletal animation (or morph-target weights only), bad accessors,
+            and any field of the wrong type (pygltflib does not check types: a string
+            where an index belongs surfaces as a TypeError, reported as one line).
     """
     path = Path(path)
+    try:
+        return _read(path, skin)
+    except UsdMotionError:
+        raise
+    except (TypeError, AttributeError, KeyError, IndexError, ValueError, OverflowError) as exc:
+        text = str(exc).splitlines()[0] if str(exc) else ""
+        raise InputError(path, f"malformed glTF document ({type(exc).__name__}: {text})") from None
+
+
+def _read(path: Path, skin: str | int | None) -> Motion:
     gltf, buffers = _load(path)
     skin_index = _pick_skin(path, gltf, skin)
     order, parents = _skeleton(path, gltf, skin_index)
@@ -375,14 +430,14 @@ def read_gltf(path: str | os.PathLike, skin: int | None = None) -> Motion:
         gltf.skins[skin_index].extras, dict) else None
     extras = extras if isinstance(extras, dict) else {}
     fps = extras.get("fps")
-    times, fps = _frame_times([k for _, _, k, _, _ in channels], float(fps) if isinstance(fps, (int, float))
-                              and fps > 0 else None)
+    times, fps = _frame_times(path, [k for _, _, k, _, _ in channels],
+                              float(fps) if isinstance(fps, (int, float)) and 0 < fps < 1e6 else None, len(order))
     n_frames, n_joints = len(times), len(order)
     rotations = np.broadcast_to(rest_q, (n_frames, n_joints, 4)).copy()
     translations = np.broadcast_to(rest_t, (n_frames, n_joints, 3)).copy()
     animated_scale = False
     for j, what, keys, values, interpolation in channels:  # one vectorised sampling per channel
-        sampled = _sample(times, keys, values, interpolation, what == "rotation")
+        sampled = _sample(times, keys, values, interpolation, what == "rotation", 1e-3 / fps)
         if what == "rotation":
             rotations[:, j] = sampled
         elif what == "translation":
