@@ -25,7 +25,6 @@ export class LibraryView {
     const answer = await getJSON('/api/takes');
     this.takes = answer.takes.map(t => ({...t, meta: null}));
     this.render();
-    this.filled = this.fill();
     return answer;
   }
 

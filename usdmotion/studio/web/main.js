@@ -20,6 +20,8 @@ const state = {
 };
 let take = null, ghostTake = null, ghostMap = null, series = null, ghostSeries = null;
 const asked = {series: 0, compare: 0};  // only the latest request of each kind may update the page
+let takeShown = null;  // resolves when the take opened first has its first frame (or failed)
+const shown = new Promise(resolve => { takeShown = resolve; });
 
 function parseRange(text) {
   const m = /^(\d+)-(\d+)$/.exec(text || '');
@@ -78,6 +80,7 @@ async function openTake(id, fresh) {
   } catch (e) {
     $('view-message').textContent = `${id}: ${e.message}`;
     $('view-message').className = 'error-text';
+    takeShown();
     return;
   }
   $('view-message').className = '';
@@ -93,6 +96,7 @@ async function openTake(id, fresh) {
   $('camera').value = state.cam;
   fillJoints();
   player.setFrame(state.frame);
+  takeShown();
   $('view-message').textContent = 'body: loading…';
   await Promise.all([loadSeries(), take.comLoaded.then(applyTrace),
                      state.compare ? openCompare() : Promise.resolve(), (async () => {
@@ -267,12 +271,14 @@ function wire() {
 
 async function start() {
   wire();
-  await library.load();
-  if (state.take) await openTake(state.take, false);
-  await library.filled;
+  await library.load();  // the list of takes, at once
+  const opening = state.take ? openTake(state.take, false) : null;
+  if (opening) await Promise.race([shown, opening]);  // a linked take is drawn before the library is read
+  await library.fill();
   const options = library.readable().map(t => new Option(t.name, t.id));
   $('compare').replaceChildren(new Option('—', ''), ...options);
   $('compare').value = state.compare;
+  await opening;
   document.body.dataset.loaded = '1';
 }
 
