@@ -273,6 +273,7 @@ async function start() {
   wire();
   await library.load();  // the list of takes, at once
   const opening = state.take ? openTake(state.take, false) : null;
+  player.warmUp();  // while the take's arrays are on their way
   if (opening) await Promise.race([shown, opening]);  // a linked take is drawn before the library is read
   await library.fill();
   const options = library.readable().map(t => new Option(t.name, t.id));

@@ -35,18 +35,18 @@ export class Player {
     this.cameraMode = 'side';
     this.rendered = 0;      // frames drawn (benchmarks read it)
     this.playLog = [];      // [time ms, frame] of each frame drawn while playing (benchmarks read it)
+    this.firstDrawnAt = this.bodyDrawnAt = null;  // when a take, then its body, were first drawn
     this.dirty = true;
     new ResizeObserver(() => this.resize()).observe(canvas);
     this.resize();
-    this.warmUp();
     this.lastTick = performance.now();
     // a hidden tab gets no animation frames: resume from where it was, not from where it would be
     document.addEventListener('visibilitychange', () => { this.lastTick = performance.now(); });
     this.renderer.setAnimationLoop(now => this.tick(now));
   }
 
-  /** Compile the figure's shaders before a take is opened (software WebGL takes a while):
-   *  a two-joint figure, drawn once off to the side and dropped. */
+  /** Compile the figure's shaders while a take is being fetched (software WebGL takes a
+   *  while): a two-joint figure, drawn once and dropped. */
   warmUp() {
     const take = {joint_names: ['a', 'b'], parents: [-1, 0], frames: 1, fps: 1,
                   positions: new Float32Array([0, 0, 0, 0, 1, 0])};
