@@ -95,6 +95,8 @@ def projected_joints(page, positions: np.ndarray) -> np.ndarray:
 
 def test_library_lists_takes_and_the_malformed_file(studio, page):
     base, _ = studio
+    requested = []
+    page.on("request", lambda r: requested.append(r.url))
     open_view(page, base, "")
     page.wait_for_function("!document.querySelector('#library-status').textContent.includes('reading')")
     rows = page.locator("#takes tbody tr")
@@ -111,6 +113,9 @@ def test_library_lists_takes_and_the_malformed_file(studio, page):
     assert names[:2] == ["session2/walk_turned.usda", "walk.bvh"]  # fewer frames first, the failed file last
     SHOTS.mkdir(parents=True, exist_ok=True)
     page.screenshot(path=SHOTS / "library.png")
+    # everything the page loads (three.js, uPlot, our modules, data) comes from the studio itself: no CDN
+    assert any("/vendor/three/build/three.module.js" in u for u in requested)
+    assert [u for u in requested if not u.startswith(base) and not u.startswith("data:")] == []
 
 
 def test_opening_a_take_draws_the_body_at_its_joints(studio, page):
