@@ -12,9 +12,9 @@ import threading
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
 
-from usdmotion.io import BVH_EXTENSIONS, GLTF_EXTENSIONS, USD_EXTENSIONS
+from usdmotion.io import AMC_EXTENSIONS, BVH_EXTENSIONS, GLTF_EXTENSIONS, USD_EXTENSIONS
 
-MOTION_EXTENSIONS = BVH_EXTENSIONS + USD_EXTENSIONS + GLTF_EXTENSIONS
+MOTION_EXTENSIONS = BVH_EXTENSIONS + USD_EXTENSIONS + GLTF_EXTENSIONS + AMC_EXTENSIONS
 #: Files larger than this are listed with an error instead of being read (a studio must
 #: not be taken down by one huge file). 512 MiB is several hours of 120 fps capture.
 MAX_FILE_BYTES = 512 * 1024 * 1024
