@@ -13,7 +13,7 @@ from usdmotion.render.gl import DynamicMesh, import_pyrender, offscreen_renderer
 from usdmotion.render.overlay import draw_text
 from usdmotion.render.scene import (COLORS, StickFigure, add_lights, grid_mesh, material, to_render_space,
                                     tube_mesh)
-from usdmotion.skin import body_size, build_body, centre_of_mass, lbs, skinning_matrices
+from usdmotion.skin import NO_BODY, body_groups, body_size, build_body, centre_of_mass, lbs, skinning_matrices
 
 _UP_Z = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 
@@ -43,7 +43,8 @@ class Actor:
             self.nodes.append(self.body_mesh.mesh)
         if style in ("stick", "both"):
             rest_len = np.linalg.norm(motion.offsets[1:], axis=1)
-            bones = np.flatnonzero(rest_len > 1e-6 * body_size(motion)) + 1
+            groups = body_groups(motion)  # no stick from a floor root or origin joint to the pelvis
+            bones = np.flatnonzero((rest_len > 1e-6 * body_size(motion)) & (groups[motion.parents[1:]] != NO_BODY)) + 1
             joint_color = COLORS["ghost_stick"] if ghost else COLORS["joint"]
             self.stick = StickFigure(motion.parents, bones, 0.012 * body_size(motion) * self.scale,
                                      np.float32(COLORS["bone"]), np.float32(joint_color))
