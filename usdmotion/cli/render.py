@@ -30,6 +30,9 @@ def render(
     grid_scale: Annotated[float, Opt(help="Grid spacing in metres.")] = 1.0,
     trace: Annotated[list[str] | None, Opt(help="Joint name or 'com' whose path to draw (repeatable).")] = None,
     overlay: Annotated[bool, Opt(help="Frame/time text overlay.")] = True,
+    angle: Annotated[list[str] | None, Opt(help="Angle to draw with its value (repeatable): knee_left, elbow_right, "
+                                                "hip_left, shoulder_right, ankle_left, wrist_right, trunk, or A,B,C "
+                                                "(at B). Values also go to OUT.angles.json.")] = None,
     compare: Annotated[Path | None, Opt(help="A second motion to compare with.")] = None,
     compare_mode: Annotated[str, Opt(help="ghost (overlaid, translucent) or side (side by side).")] = "ghost",
     shadows: Annotated[bool, Opt(help="Shadows from the key light (about half the speed).")] = False,
@@ -51,7 +54,7 @@ def render(
     options = RenderOptions(width=width, height=height, start=start, end=end, fps=fps, speed=speed, camera=camera,
                             style=style, grid=grid, grid_scale=grid_scale, traces=tuple(trace or ()),
                             overlay=overlay, compare_mode=compare_mode, shadows=shadows, msaa=msaa, quality=quality,
-                            labels=(source.name, compare.name if compare else ""))
+                            labels=(source.name, compare.name if compare else ""), angles=tuple(angle or ()))
     total = len(output_frames(motion, options)[0])
     with progress(f"rendering {output.name}", total=total, unit="frames") as update:
         result = render_motion(motion, output, options, other, progress=lambda n: update(n))

@@ -48,6 +48,7 @@ class RenderOptions:
     quality: int = 20
     body_resolution: int = 96
     labels: tuple[str, str] = ("", "")
+    angles: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -124,6 +125,11 @@ def plan_render(motion: Motion, options: RenderOptions, other: Motion | None = N
                 motion.joint_index(name)
             except KeyError as exc:
                 raise UsdMotionError(f"--trace: {exc.args[0]}") from None
+    if options.angles:
+        from usdmotion.render.angles import parse_angle
+
+        for text in options.angles:
+            parse_angle(motion, text)
     frames, times, fps = output_frames(motion, options)
     other_frames = None
     joints = [to_render_space(_joint_positions(motion, frames), motion.meters_per_unit, motion.up_axis)]
@@ -174,4 +180,8 @@ def render_motion(motion: Motion, output: str | Path, options: RenderOptions = R
         views.close()
         writer.close(commit=committed)
     timings["encode"] = writer.busy
+    if views.angles is not None:
+        from usdmotion.render.angles import sidecar_path, write_sidecar
+
+        write_sidecar(sidecar_path(output), plan, views.angles)
     return RenderResult(len(plan.frames), time.perf_counter() - started, timings)

@@ -89,7 +89,22 @@ class Views:
                 scenes[i if self.side else 0].add(mesh)
         self.scenes = scenes
         self._add_static(motion, other)
+        self.angles = self._angles(motion) if options.angles else None
         self.renderer = offscreen_renderer(*plan.panel, msaa=options.msaa)
+
+    def _angles(self, motion: Motion):
+        """The :class:`~usdmotion.render.angles.AngleOverlay` of ``--angle`` on the main view."""
+        from usdmotion.render.angles import AngleOverlay, angle_values, parse_angle
+        from usdmotion.render.camera import project_frames
+
+        plan = self.plan
+        specs = [parse_angle(motion, text) for text in self.options.angles]
+        joints = to_render_space(fk_arrays(motion.rotations[plan.frames], self.actors[0].local_t[plan.frames],
+                                           motion.parents)[1], motion.meters_per_unit, motion.up_axis)
+        values = angle_values(specs, joints, np.array([0.0, 1.0, 0.0]))  # bends: invariant to units and axes
+        index = np.array([s.joints for s in specs])  # (K, 3); -1 (trunk's third) is replaced when drawn
+        points = project_frames(joints[:, index.reshape(-1)], plan.camera.poses, plan.camera.yfov, *plan.panel)
+        return AngleOverlay(specs, values, points.reshape(len(plan.frames), len(specs), 3, 2), plan.panel[1])
 
     def _scene(self, pyrender):
         scene = pyrender.Scene(bg_color=np.array(COLORS["background"]), ambient_light=np.full(3, 0.45))
@@ -157,6 +172,8 @@ class Views:
                 for scene in self.scenes:
                     scene.set_pose(scene.camera_node, plan.camera.poses[i])
                     images.append(render_rgb(self.renderer, scene, options.shadows))
+                if self.angles is not None:
+                    self.angles.draw(images[0], i)
                 if options.overlay:
                     self._overlay(images, i)
                 image = images[0] if len(images) == 1 else np.ascontiguousarray(np.hstack(images))
