@@ -35,6 +35,9 @@ def render(
                                                 "(at B). Values also go to OUT.angles.json.")] = None,
     compare: Annotated[Path | None, Opt(help="A second motion to compare with.")] = None,
     compare_mode: Annotated[str, Opt(help="ghost (overlaid, translucent) or side (side by side).")] = "ghost",
+    align: Annotated[str, Opt(help="How --compare's clock maps: start (same seconds), time (DTW on bone angles) "
+                                   "or frame:N,M (frame N shows with OTHER's frame M); OTHER is also moved onto "
+                                   "the main take's root and heading.")] = "start",
     shadows: Annotated[bool, Opt(help="Shadows from the key light (about half the speed).")] = False,
     msaa: Annotated[int, Opt(help="Multisample anti-aliasing samples (0 = off, fastest).")] = 0,
     quality: Annotated[int, Opt(help="H.264 CRF (lower = better, larger).")] = 20,
@@ -54,7 +57,7 @@ def render(
     options = RenderOptions(width=width, height=height, start=start, end=end, fps=fps, speed=speed, camera=camera,
                             style=style, grid=grid, grid_scale=grid_scale, traces=tuple(trace or ()),
                             overlay=overlay, compare_mode=compare_mode, shadows=shadows, msaa=msaa, quality=quality,
-                            labels=(source.name, compare.name if compare else ""), angles=tuple(angle or ()))
+                            labels=(source.name, compare.name if compare else ""), angles=tuple(angle or ()), align=align)
     total = len(output_frames(motion, options)[0])
     with progress(f"rendering {output.name}", total=total, unit="frames") as update:
         result = render_motion(motion, output, options, other, progress=lambda n: update(n))

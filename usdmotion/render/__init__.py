@@ -49,6 +49,7 @@ class RenderOptions:
     body_resolution: int = 96
     labels: tuple[str, str] = ("", "")
     angles: tuple[str, ...] = ()
+    align: str = "start"
 
 
 @dataclass(frozen=True)
@@ -62,6 +63,7 @@ class RenderPlan:
     camera: object                  # usdmotion.render.camera.CameraTrack
     panel: tuple[int, int]          # (width, height) of one view
     ground: float                   # ground height, metres (render space)
+    alignment: object = None        # usdmotion.render.compare.Alignment of the compared motion
 
 
 @dataclass
@@ -125,6 +127,8 @@ def plan_render(motion: Motion, options: RenderOptions, other: Motion | None = N
                 motion.joint_index(name)
             except KeyError as exc:
                 raise UsdMotionError(f"--trace: {exc.args[0]}") from None
+    if other is None and options.align != "start":
+        raise UsdMotionError("--align needs --compare OTHER")
     if options.angles:
         from usdmotion.render.angles import parse_angle
 
@@ -134,11 +138,15 @@ def plan_render(motion: Motion, options: RenderOptions, other: Motion | None = N
     other_frames = None
     joints = [to_render_space(_joint_positions(motion, frames), motion.meters_per_unit, motion.up_axis)]
     pad = 0.08 * body_size(motion) * motion.meters_per_unit
+    alignment = None
     if other is not None:
+        from usdmotion.render.compare import align_takes
+
         if other.n_frames == 0:
             raise UsdMotionError("no frames to render: the compared motion has no frames")
-        other_frames = np.clip(np.rint(times * other.fps).astype(np.int64), 0, other.n_frames - 1)
-        joints.append(to_render_space(_joint_positions(other, other_frames), other.meters_per_unit, other.up_axis))
+        alignment = align_takes(motion, other, frames, times, options.align, render_joints)
+        other_frames = alignment.frames
+        joints.append(render_joints(other, other_frames) @ alignment.turn.T + alignment.shift)
         pad = max(pad, 0.08 * body_size(other) * other.meters_per_unit)
     side = other is not None and options.compare_mode == "side"
     panel = (options.width // 2 if side else options.width, options.height)
@@ -147,11 +155,18 @@ def plan_render(motion: Motion, options: RenderOptions, other: Motion | None = N
     else:
         camera = preset_track(options.camera, np.concatenate(joints, axis=1), times, panel[0] / panel[1], pad)
     ground = min(0.0, float(min(j[..., 1].min() for j in joints)))
-    return RenderPlan(frames, other_frames, times, fps, camera, panel, ground)
+    return RenderPlan(frames, other_frames, times, fps, camera, panel, ground, alignment)
 
 
 def _joint_positions(motion: Motion, frames: np.ndarray) -> np.ndarray:
     return fk_arrays(motion.rotations[frames], local_translations(motion)[frames], motion.parents)[1]
+
+
+def render_joints(motion: Motion, frames: np.ndarray) -> np.ndarray:
+    """Joint positions ``(N, J, 3)`` at ``frames`` in render space (metres, Y up)."""
+    from usdmotion.render.scene import to_render_space
+
+    return to_render_space(_joint_positions(motion, frames), motion.meters_per_unit, motion.up_axis)
 
 
 def render_motion(motion: Motion, output: str | Path, options: RenderOptions = RenderOptions(),

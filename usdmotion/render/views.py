@@ -10,6 +10,7 @@ from usdmotion.errors import UsdMotionError
 from usdmotion.kinematics import fk_arrays, local_translations
 from usdmotion.motion import Motion
 from usdmotion.render.gl import DynamicMesh, import_pyrender, offscreen_renderer, render_rgb
+from usdmotion.render.compare import clock_text
 from usdmotion.render.overlay import draw_text
 from usdmotion.render.scene import (COLORS, StickFigure, add_lights, grid_mesh, material, to_render_space,
                                     tube_mesh)
@@ -21,10 +22,14 @@ _UP_Z = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 class Actor:
     """One motion's body and/or stick figure, skinned a chunk of frames at a time."""
 
-    def __init__(self, motion: Motion, frames: np.ndarray, style: str, resolution: int, ghost: bool):
+    def __init__(self, motion: Motion, frames: np.ndarray, style: str, resolution: int, ghost: bool,
+                 alignment=None):
         self.motion, self.frames = motion, frames
         self.local_t = local_translations(motion)
         self.turn = (_UP_Z if motion.up_axis == "Z" else np.eye(3)) * 1.0
+        self.shift = np.zeros(3)
+        if alignment is not None:  # the compared take, turned and moved onto the main one
+            self.turn, self.shift = alignment.turn @ self.turn, alignment.shift
         self.scale = motion.meters_per_unit
         self.body = self.stick = None
         self.nodes = []
@@ -51,7 +56,7 @@ class Actor:
             self.nodes.append(self.stick.dynamic.mesh)
 
     def _space(self, points: np.ndarray) -> np.ndarray:
-        return (points * self.scale) @ self.turn.T
+        return (points * self.scale) @ self.turn.T + self.shift
 
     def prepare(self, index: np.ndarray) -> None:
         """Skin the output frames ``index`` (one chunk) at once."""
@@ -81,8 +86,9 @@ class Views:
         self.actors = [Actor(motion, plan.frames, options.style, options.body_resolution, ghost=False)]
         if other is not None:
             self.actors.append(Actor(other, plan.other_frames, options.style, options.body_resolution,
-                                     ghost=not self.side))
+                                     ghost=not self.side, alignment=plan.alignment))
         self.labels = options.labels
+        self.other_fps = other.fps if other is not None else None
         scenes = [self._scene(pyrender) for _ in range(2 if self.side else 1)]
         for i, actor in enumerate(self.actors):
             for mesh in actor.nodes:
@@ -189,12 +195,11 @@ class Views:
         names = [label for label in self.labels]
         if self.side:
             draw_text(images[0], [names[0], main] if names[0] else [main])
-            other = f"frame {plan.other_frames[i]}"
-            draw_text(images[1], [names[1], other] if names[1] else [other])
+            draw_text(images[1], [clock_text(plan.alignment, i, self.other_fps, names[1])])
             return
         lines = [names[0], main] if names[0] else [main]
         if plan.other_frames is not None:
-            lines.append(f"ghost: {names[1] or 'compare'}  frame {plan.other_frames[i]}")
+            lines.append("ghost " + clock_text(plan.alignment, i, self.other_fps, names[1]))
         draw_text(images[0], lines)
 
     def close(self) -> None:
