@@ -285,3 +285,26 @@ def test_a_root_bone_at_the_floor_gets_no_body_and_no_stick(sheet, tmp_path, sty
     background = np.abs(pixels - image[2, 2].astype(int)).max(axis=1) < 40  # not body, not a dark stick
     assert background.all(), f"drawn along the floor root bone: {pixels[~background]}"
     assert is_body(image).sum() > 200  # the body itself is there
+
+
+def test_default_side_camera_follows_the_body_at_about_60_percent_of_the_height(tmp_path):
+    """A 4 m walk: at its first and last frames the body is ~60 % of the picture height and
+    near the middle (the fixed ``path`` preset, for comparison, shows it much smaller)."""
+    from tests.conftest import shared_path
+
+    walk = read_motion(shared_path("cmu/cgspeed_12_01_walk.bvh"), units="asf")
+    shares = {}
+    for camera in ("side", "path"):
+        options = RenderOptions(width=320, height=240, overlay=False, body_resolution=40, camera=camera, fps=0.5,
+                                grid=False)
+        render_motion(walk, tmp_path / camera / "####.png", options)
+        shares[camera] = []
+        for path in sorted((tmp_path / camera).iterdir()):
+            body = is_body(read_image(path))
+            rows, cols = np.flatnonzero(body.any(axis=1)), np.flatnonzero(body.any(axis=0))
+            shares[camera].append((np.ptp(rows) + 1) / 240)
+            if camera == "side":
+                assert abs(0.5 * (cols[0] + cols[-1]) - 160) < 0.2 * 320, path.name  # near the middle
+    assert len(shares["side"]) == 3
+    assert all(0.45 < s < 0.75 for s in shares["side"]), shares
+    assert max(shares["path"]) < 0.8 * min(shares["side"]), shares
