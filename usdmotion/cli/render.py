@@ -33,6 +33,10 @@ def render(
     angle: Annotated[list[str] | None, Opt(help="Angle to draw with its value (repeatable): knee_left, elbow_right, "
                                                 "hip_left, shoulder_right, ankle_left, wrist_right, trunk, or A,B,C "
                                                 "(at B). Values also go to OUT.angles.json.")] = None,
+    strobe: Annotated[int | None, Opt(help="Stroboscope still: N poses over the range in one picture "
+                                           "(OUT is one .png/.jpg).")] = None,
+    strobe_every: Annotated[str | None, Opt(help="Stroboscope still with a pose every TIME: 0.1s, 100ms or "
+                                                 "12f.")] = None,
     compare: Annotated[Path | None, Opt(help="A second motion to compare with.")] = None,
     compare_mode: Annotated[str, Opt(help="ghost (overlaid, translucent) or side (side by side).")] = "ghost",
     align: Annotated[str, Opt(help="How --compare's clock maps: start (same seconds), time (DTW on bone angles) "
@@ -58,6 +62,14 @@ def render(
                             style=style, grid=grid, grid_scale=grid_scale, traces=tuple(trace or ()),
                             overlay=overlay, compare_mode=compare_mode, shadows=shadows, msaa=msaa, quality=quality,
                             labels=(source.name, compare.name if compare else ""), angles=tuple(angle or ()), align=align)
+    if strobe is not None or strobe_every is not None:
+        from usdmotion.render.strobe import render_strobe
+
+        if other is not None:
+            raise ValueError("--strobe draws one take: leave out --compare")
+        shown = render_strobe(motion, output, options, strobe, strobe_every)
+        typer.echo(f"wrote {output}: {len(shown)} poses, frames {shown[0]}-{shown[-1]}, {width}x{height}")
+        return
     total = len(output_frames(motion, options)[0])
     with progress(f"rendering {output.name}", total=total, unit="frames") as update:
         result = render_motion(motion, output, options, other, progress=lambda n: update(n))
