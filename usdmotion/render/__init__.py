@@ -50,6 +50,7 @@ class RenderOptions:
     labels: tuple[str, str] = ("", "")
     angles: tuple[str, ...] = ()
     align: str = "start"
+    panel: str | None = None
 
 
 @dataclass(frozen=True)
@@ -149,7 +150,12 @@ def plan_render(motion: Motion, options: RenderOptions, other: Motion | None = N
         joints.append(render_joints(other, other_frames) @ alignment.turn.T + alignment.shift)
         pad = max(pad, 0.08 * body_size(other) * other.meters_per_unit)
     side = other is not None and options.compare_mode == "side"
-    panel = (options.width // 2 if side else options.width, options.height)
+    strip = 0
+    if options.panel:
+        from usdmotion.render.panel import parse_panel, strip_height
+
+        strip = strip_height(options.height, len(parse_panel(options.panel)))
+    panel = (options.width // 2 if side else options.width, options.height - strip)
     if is_usd_camera(options.camera):
         camera = usd_camera_track(options.camera, times)
     else:

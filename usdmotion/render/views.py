@@ -96,6 +96,12 @@ class Views:
         self.scenes = scenes
         self._add_static(motion, other)
         self.angles = self._angles(motion) if options.angles else None
+        self.strip = None
+        if options.panel:
+            from usdmotion.render.panel import PlotStrip, panel_series, parse_panel
+
+            series = panel_series(motion, parse_panel(options.panel), plan.frames)
+            self.strip = PlotStrip(series, plan.times, options.width, options.height - plan.panel[1])
         self.renderer = offscreen_renderer(*plan.panel, msaa=options.msaa)
 
     def _angles(self, motion: Motion):
@@ -183,6 +189,8 @@ class Views:
                 if options.overlay:
                     self._overlay(images, i)
                 image = images[0] if len(images) == 1 else np.ascontiguousarray(np.hstack(images))
+                if self.strip is not None:
+                    image = np.ascontiguousarray(np.vstack([image, self.strip.frame(i)]))
                 draw += time.perf_counter() - t0
                 emit(image, int(i))
                 if progress is not None:
