@@ -33,6 +33,8 @@ def render(
     angle: Annotated[list[str] | None, Opt(help="Angle to draw with its value (repeatable): knee_left, elbow_right, "
                                                 "hip_left, shoulder_right, ankle_left, wrist_right, trunk, or A,B,C "
                                                 "(at B). Values also go to OUT.angles.json.")] = None,
+    layout: Annotated[str | None, Opt(help="Several synchronised views ROWSxCOLUMNS, one --camera each: "
+                                           "--layout 2x2 --camera side,front,top,follow.")] = None,
     panel: Annotated[str | None, Opt(help="Plot strip under the picture with a time cursor: angle:NAME and/or "
                                           "speed:JOINT, comma-separated (angle:knee_left,speed:RightHand).")] = None,
     strobe: Annotated[int | None, Opt(help="Stroboscope still: N poses over the range in one picture "
@@ -63,7 +65,7 @@ def render(
     options = RenderOptions(width=width, height=height, start=start, end=end, fps=fps, speed=speed, camera=camera,
                             style=style, grid=grid, grid_scale=grid_scale, traces=tuple(trace or ()),
                             overlay=overlay, compare_mode=compare_mode, shadows=shadows, msaa=msaa, quality=quality,
-                            labels=(source.name, compare.name if compare else ""), angles=tuple(angle or ()), align=align, panel=panel)
+                            labels=(source.name, compare.name if compare else ""), angles=tuple(angle or ()), align=align, panel=panel, layout=layout)
     if strobe is not None or strobe_every is not None:
         from usdmotion.render.strobe import render_strobe
 

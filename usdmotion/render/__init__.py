@@ -51,6 +51,7 @@ class RenderOptions:
     angles: tuple[str, ...] = ()
     align: str = "start"
     panel: str | None = None
+    layout: str | None = None
 
 
 @dataclass(frozen=True)
@@ -65,6 +66,8 @@ class RenderPlan:
     panel: tuple[int, int]          # (width, height) of one view
     ground: float                   # ground height, metres (render space)
     alignment: object = None        # usdmotion.render.compare.Alignment of the compared motion
+    cameras: tuple = ()             # --layout: one CameraTrack per view, row by row (camera = cameras[0])
+    grid_shape: tuple[int, int] = (1, 1)  # --layout rows, columns
 
 
 @dataclass
@@ -155,13 +158,37 @@ def plan_render(motion: Motion, options: RenderOptions, other: Motion | None = N
         from usdmotion.render.panel import parse_panel, strip_height
 
         strip = strip_height(options.height, len(parse_panel(options.panel)))
-    panel = (options.width // 2 if side else options.width, options.height - strip)
-    if is_usd_camera(options.camera):
-        camera = usd_camera_track(options.camera, times)
-    else:
-        camera = preset_track(options.camera, np.concatenate(joints, axis=1), times, panel[0] / panel[1], pad)
+    rows, cols = parse_layout(options.layout)
+    names = [c.strip() for c in options.camera.split(",")] if "," in options.camera else [options.camera]
+    if len(names) != rows * cols:
+        raise UsdMotionError(f"--layout {rows}x{cols} needs {rows * cols} cameras (--camera side,front,top,follow), "
+                             f"got {len(names)}" if options.layout else
+                             "several cameras need --layout (e.g. --layout 2x2 --camera side,front,top,follow)")
+    if options.layout and side:
+        raise UsdMotionError("--layout and --compare-mode side cannot be combined (use the ghost)")
+    panel = (options.width // 2 if side else options.width // cols, (options.height - strip) // rows)
+    cameras = []
+    for name in names:
+        if is_usd_camera(name):
+            cameras.append(usd_camera_track(name, times))
+        else:
+            cameras.append(preset_track(name, np.concatenate(joints, axis=1), times, panel[0] / panel[1], pad))
     ground = min(0.0, float(min(j[..., 1].min() for j in joints)))
-    return RenderPlan(frames, other_frames, times, fps, camera, panel, ground, alignment)
+    return RenderPlan(frames, other_frames, times, fps, cameras[0], panel, ground, alignment,
+                      tuple(cameras) if options.layout else (), (rows, cols))
+
+
+def parse_layout(text: str | None) -> tuple[int, int]:
+    """``"2x2"`` → ``(2, 2)`` (rows, columns); ``None`` → ``(1, 1)``."""
+    if not text:
+        return 1, 1
+    try:
+        rows, cols = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        rows = cols = 0
+    if not (1 <= rows <= 3 and 1 <= cols <= 3):
+        raise UsdMotionError(f"--layout {text!r}: use ROWSxCOLUMNS from 1x1 to 3x3, e.g. 2x2")
+    return rows, cols
 
 
 def _joint_positions(motion: Motion, frames: np.ndarray) -> np.ndarray:

@@ -100,8 +100,17 @@ class Views:
         if options.panel:
             from usdmotion.render.panel import PlotStrip, panel_series, parse_panel
 
-            series = panel_series(motion, parse_panel(options.panel), plan.frames)
-            self.strip = PlotStrip(series, plan.times, options.width, options.height - plan.panel[1])
+            from usdmotion.render.panel import strip_height
+
+            items = parse_panel(options.panel)
+            series = panel_series(motion, items, plan.frames)
+            self.strip = PlotStrip(series, plan.times, options.width, strip_height(options.height, len(items)))
+        self.view_nodes = []
+        if plan.cameras:  # --layout: one camera node per view in the one scene
+            for cam in plan.cameras:
+                camera = pyrender.PerspectiveCamera(yfov=cam.yfov, aspectRatio=plan.panel[0] / plan.panel[1],
+                                                    znear=cam.znear, zfar=cam.zfar)
+                self.view_nodes.append(self.scenes[0].add(camera, pose=cam.poses[0]))
         self.renderer = offscreen_renderer(*plan.panel, msaa=options.msaa)
 
     def _angles(self, motion: Motion):
@@ -181,24 +190,53 @@ class Views:
                 for actor in self.actors:
                     actor.update(k)
                 images = []
-                for scene in self.scenes:
-                    scene.set_pose(scene.camera_node, plan.camera.poses[i])
-                    images.append(render_rgb(self.renderer, scene, options.shadows))
+                if self.view_nodes:
+                    scene = self.scenes[0]
+                    for node, cam in zip(self.view_nodes, plan.cameras):
+                        scene.main_camera_node = node
+                        scene.set_pose(node, cam.poses[i])
+                        images.append(render_rgb(self.renderer, scene, options.shadows))
+                else:
+                    for scene in self.scenes:
+                        scene.set_pose(scene.camera_node, plan.camera.poses[i])
+                        images.append(render_rgb(self.renderer, scene, options.shadows))
                 if self.angles is not None:
                     self.angles.draw(images[0], i)
                 if options.overlay:
                     self._overlay(images, i)
-                image = images[0] if len(images) == 1 else np.ascontiguousarray(np.hstack(images))
-                if self.strip is not None:
-                    image = np.ascontiguousarray(np.vstack([image, self.strip.frame(i)]))
+                image = self._compose(images, i)
                 draw += time.perf_counter() - t0
                 emit(image, int(i))
                 if progress is not None:
                     progress(1)
         timings.update(skin=skin, render=draw)
 
+    def _compose(self, images: list[np.ndarray], i: int) -> np.ndarray:
+        """The output frame: views side by side (or in the layout's grid, padded to the
+        output size), the plot strip under them."""
+        rows, cols = self.plan.grid_shape
+        if self.view_nodes:
+            block = np.vstack([np.hstack(images[r * cols:(r + 1) * cols]) for r in range(rows)])
+        else:
+            block = images[0] if len(images) == 1 else np.hstack(images)
+        parts = [block] if self.strip is None else [block, None]
+        height = self.options.height - (0 if self.strip is None else self.strip.image.shape[0])
+        if block.shape[:2] != (height, self.options.width):  # panels rounded down: pad with the background
+            pad = np.empty((height, self.options.width, 3), np.uint8)
+            pad[...] = np.asarray(block[0, 0])
+            pad[:block.shape[0], :block.shape[1]] = block
+            parts[0] = pad
+        if self.strip is not None:
+            parts[1] = self.strip.frame(i)
+        return np.ascontiguousarray(parts[0] if len(parts) == 1 else np.vstack(parts))
+
     def _overlay(self, images: list[np.ndarray], i: int) -> None:
         plan = self.plan
+        if self.view_nodes:
+            names = [c.strip() for c in self.options.camera.split(",")]
+            for name, image in zip(names, images):
+                draw_text(image, [f"{name}   frame {plan.frames[i]}   {plan.times[i]:7.3f} s"])
+            return
         main = f"frame {plan.frames[i]}   {plan.times[i]:7.3f} s"
         names = [label for label in self.labels]
         if self.side:
