@@ -46,6 +46,7 @@ def render(
     align: Annotated[str, Opt(help="How --compare's clock maps: start (same seconds), time (DTW on bone angles) "
                                    "or frame:N,M (frame N shows with OTHER's frame M); OTHER is also moved onto "
                                    "the main take's root and heading.")] = "start",
+    contact_shadow: Annotated[bool, Opt(help="Soft shadow disc on the ground under the body.")] = True,
     shadows: Annotated[bool, Opt(help="Shadows from the key light (about half the speed).")] = False,
     msaa: Annotated[int, Opt(help="Multisample anti-aliasing samples (0 = off, fastest).")] = 0,
     quality: Annotated[int, Opt(help="H.264 CRF (lower = better, larger).")] = 20,
@@ -65,7 +66,8 @@ def render(
     options = RenderOptions(width=width, height=height, start=start, end=end, fps=fps, speed=speed, camera=camera,
                             style=style, grid=grid, grid_scale=grid_scale, traces=tuple(trace or ()),
                             overlay=overlay, compare_mode=compare_mode, shadows=shadows, msaa=msaa, quality=quality,
-                            labels=(source.name, compare.name if compare else ""), angles=tuple(angle or ()), align=align, panel=panel, layout=layout)
+                            labels=(source.name, compare.name if compare else ""), angles=tuple(angle or ()), align=align, panel=panel, layout=layout,
+                            contact_shadow=contact_shadow)
     if strobe is not None or strobe_every is not None:
         from usdmotion.render.strobe import render_strobe
 

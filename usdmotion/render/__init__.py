@@ -52,6 +52,7 @@ class RenderOptions:
     align: str = "start"
     panel: str | None = None
     layout: str | None = None
+    contact_shadow: bool = True
 
 
 @dataclass(frozen=True)

@@ -96,6 +96,15 @@ class Views:
         self.scenes = scenes
         self._add_static(motion, other)
         self.angles = self._angles(motion) if options.angles else None
+        self.shadow = None
+        if options.contact_shadow and self.actors[0].body is not None:
+            from usdmotion.render.shadow import ContactShadow
+
+            main = self.actors[0]
+            size = main.body.size * main.scale
+            self.shadow = ContactShadow(0.3 * size, plan.ground, size)
+            for scene in self.scenes[:1]:
+                scene.add(self.shadow.dynamic.mesh)
         self.strip = None
         if options.panel:
             from usdmotion.render.panel import PlotStrip, panel_series, parse_panel
@@ -151,7 +160,8 @@ class Views:
             margin = max(2.0, 2 * options.grid_scale)
             lo = joints.reshape(-1, 3).min(axis=0) - margin
             hi = joints.reshape(-1, 3).max(axis=0) + margin
-            static += grid_mesh(lo, hi, plan.ground, options.grid_scale, max(0.0025 * distance, 0.004),
+            pixel = distance * 2 * np.tan(plan.camera.yfov / 2) / plan.panel[1]  # metres per pixel at the body
+            static += grid_mesh(lo, hi, plan.ground, options.grid_scale, max(0.0025 * distance, 1.4 * pixel, 0.004),
                               solid=options.shadows)  # a floor to receive the shadows
         for k, name in enumerate(options.traces):
             path = self._trace_path(motion, name, joints)
@@ -189,6 +199,8 @@ class Views:
                 self.renderer._platform.make_current()
                 for actor in self.actors:
                     actor.update(k)
+                if self.shadow is not None:
+                    self.shadow.update(self.actors[0].joints[k])
                 images = []
                 if self.view_nodes:
                     scene = self.scenes[0]
