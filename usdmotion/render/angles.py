@@ -120,55 +120,65 @@ class AngleOverlay:
         self.records: list[dict] = []
 
     def draw(self, image: np.ndarray, i: int) -> None:
-        """Draw frame ``i``'s arcs and labels into ``image (H, W, 3) uint8`` in place; record the texts."""
+        """Draw frame ``i``'s arcs and labels into ``image (H, W, 3) uint8`` in place; record the texts.
+
+        Labels are laid out first (to the right of the joint, else to its left, below any
+        label already placed); then only the rectangle holding all arcs and labels is
+        converted for Pillow (a 720p frame costs a few milliseconds less)."""
         from PIL import Image, ImageDraw
 
         from usdmotion.render.overlay import _font
 
-        height = image.shape[0]
-        canvas = Image.fromarray(image)
-        pen = ImageDraw.Draw(canvas)
+        height, width = image.shape[:2]
+        probe = ImageDraw.Draw(Image.new("RGB", (1, 1)))
         font = _font(max(14, height // 30))
-        record = {}
-        taken: list[tuple[int, int, int, int]] = []
+        r = self.radius
+        record, taken, shapes = {}, [], []
         for k, spec in enumerate(self.specs):
             vertex, a, b = self.points[i, k]
-            color = COLORS[k % len(COLORS)]
             text = label(spec, float(self.values[i, k]))
             # the angle is between "straight on" (the incoming bone extended; the vertical for
             # the trunk) and the outgoing bone: the arc spans exactly the value shown
-            if spec.trunk:
-                straight, bone = np.array([0.0, -1.0]), a - vertex
-            else:
-                straight, bone = vertex - a, b - vertex
-            r = self.radius
+            straight, bone = (np.array([0.0, -1.0]), a - vertex) if spec.trunk else (vertex - a, b - vertex)
             rays = [d / max(float(np.linalg.norm(d)), 1e-9) for d in (straight, bone)]
             start, end = (math.degrees(math.atan2(d[1], d[0])) for d in rays)
             if (end - start) % 360.0 > 180.0:
                 start, end = end, start
-            for d, width in zip(rays, (max(1, r // 12), max(2, r // 8))):
-                pen.line([tuple(vertex), tuple(vertex + 1.4 * r * d)], fill=color, width=width)
-            pen.arc([vertex[0] - r, vertex[1] - r, vertex[0] + r, vertex[1] + r], start, end, fill=color,
-                    width=max(2, r // 6))
             spot = [float(vertex[0] + 1.5 * r), float(vertex[1] - 0.5 * r)]
-            bbox = pen.textbbox(tuple(spot), text, font=font)
-            if bbox[2] > image.shape[1] - 4:  # no room on the right: left of the joint
+            bbox = probe.textbbox(tuple(spot), text, font=font)
+            if bbox[2] > width - 4:  # no room on the right: left of the joint
                 spot[0] = float(vertex[0] - 1.5 * r - (bbox[2] - bbox[0]))
-            spot = [min(max(spot[0], 4.0), image.shape[1] - 4.0 - (bbox[2] - bbox[0])),
+            spot = [min(max(spot[0], 4.0), width - 4.0 - (bbox[2] - bbox[0])),
                     min(max(spot[1], 4.0), height - 4.0 - (bbox[3] - bbox[1]))]
-            bbox = pen.textbbox(tuple(spot), text, font=font)
+            bbox = probe.textbbox(tuple(spot), text, font=font)
             while any(bbox[0] < t[2] and t[0] < bbox[2] and bbox[1] < t[3] + 4 and t[1] < bbox[3] + 4 for t in taken):
                 spot[1] += bbox[3] - bbox[1] + 6  # below the labels already placed
-                bbox = pen.textbbox(tuple(spot), text, font=font)
+                bbox = probe.textbbox(tuple(spot), text, font=font)
             taken.append(bbox)
-            pen.rectangle([bbox[0] - 3, bbox[1] - 2, bbox[2] + 3, bbox[3] + 2], fill=(20, 20, 20))
-            pen.text(tuple(spot), text, fill=color, font=font)
+            shapes.append((COLORS[k % len(COLORS)], vertex, rays, start, end, spot, bbox, text))
             record[spec.name] = {"value": round(float(self.values[i, k]), 3), "text": text,
                                  "vertex_px": [round(float(vertex[0]), 2), round(float(vertex[1]), 2)],
                                  "label_box": [int(v) for v in bbox], "label_at": [round(v, 2) for v in spot],
                                  "arc_radius_px": r}
-        image[...] = np.asarray(canvas)
         self.records.append(record)
+        reach = 1.5 * r + 4
+        boxes = np.array([[s[1][0] - reach, s[1][1] - reach, s[1][0] + reach, s[1][1] + reach] for s in shapes]
+                         + [[t[0] - 5, t[1] - 4, t[2] + 5, t[3] + 4] for t in taken])
+        x0, y0 = (max(int(v), 0) for v in boxes[:, :2].min(axis=0))
+        x1, y1 = min(int(boxes[:, 2].max()) + 1, width), min(int(boxes[:, 3].max()) + 1, height)
+        if x1 <= x0 or y1 <= y0:
+            return
+        canvas = Image.fromarray(np.ascontiguousarray(image[y0:y1, x0:x1]))
+        pen = ImageDraw.Draw(canvas)
+        shift = np.array([x0, y0], float)
+        for color, vertex, rays, start, end, spot, bbox, text in shapes:
+            v = vertex - shift
+            for d, line_width in zip(rays, (max(1, r // 12), max(2, r // 8))):
+                pen.line([tuple(v), tuple(v + 1.4 * r * d)], fill=color, width=line_width)
+            pen.arc([v[0] - r, v[1] - r, v[0] + r, v[1] + r], start, end, fill=color, width=max(2, r // 6))
+            pen.rectangle([bbox[0] - 3 - x0, bbox[1] - 2 - y0, bbox[2] + 3 - x0, bbox[3] + 2 - y0], fill=(20, 20, 20))
+            pen.text((spot[0] - x0, spot[1] - y0), text, fill=color, font=font)
+        image[y0:y1, x0:x1] = np.asarray(canvas)
 
 
 def sidecar_path(output: Path) -> Path:
