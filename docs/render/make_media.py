@@ -28,13 +28,13 @@ def warped(motion, amount: float = 0.12):
 
     n = motion.n_frames
     u = np.linspace(0.0, 1.0, n)
-    copy = sample_motion(motion, (n - 1) * (u + amount * np.sin(2 * np.pi * u)))
+    rotations, root, joint_t = sample_motion(motion, (n - 1) * (u + amount * np.sin(2 * np.pi * u)))
     angle = np.radians(30.0)
     turn = np.array([[np.cos(angle), 0, np.sin(angle)], [0, 1, 0], [-np.sin(angle), 0, np.cos(angle)]])
-    rotations = copy.rotations.copy()
+    rotations = rotations.copy()
     rotations[:, 0] = quat_mul(np.array([np.cos(angle / 2), 0, np.sin(angle / 2), 0]), rotations[:, 0])
-    root = copy.root_translation @ turn.T + np.array([1.0 / motion.meters_per_unit, 0, 0])
-    return copy.with_frames(rotations, root, copy.joint_translations)
+    root = root @ turn.T + np.array([1.0 / motion.meters_per_unit, 0, 0])
+    return motion.with_frames(rotations, root, joint_t)
 
 
 def main() -> None:
@@ -65,9 +65,9 @@ def main() -> None:
     compare = dataclasses.replace(base, width=640, height=360, speed=0.25, align="time", angles=("knee_left",),
                                   labels=("Bandai run", "same run, time-warped"), msaa=4)
     render_motion(run, OUT / "bandai_run_vs_warped.mp4", compare, other)
-    render_motion(run, tmp / "cmp/####.png", dataclasses.replace(compare, start=12, end=13), other)
+    render_motion(run, tmp / "cmp/####.png", dataclasses.replace(compare, start=6, end=7), other)
     shutil.copy(tmp / "cmp/0000.png", OUT / "bandai_run_vs_warped.png")
-    render_motion(run, tmp / "start/####.png", dataclasses.replace(compare, start=12, end=13, align="start"), other)
+    render_motion(run, tmp / "start/####.png", dataclasses.replace(compare, start=6, end=7, align="start"), other)
     shutil.copy(tmp / "start/0000.png", OUT / "bandai_run_vs_warped_unaligned.png")
     shutil.rmtree(tmp)
     print("wrote", ", ".join(sorted(p.name for p in OUT.iterdir())))

@@ -61,9 +61,10 @@ def parse_align(text: str) -> tuple[str, int | None, int | None]:
     raise UsdMotionError(f"--align {text!r}: use {ALIGN_HELP} (frames are non-negative integers)")
 
 
-def dtw_frames(motion: Motion, other: Motion) -> np.ndarray:
-    """Other take's frame position ``(F,)`` (float) matched to every frame of ``motion`` by
-    DTW on the bone-angle feature, both resampled to the main take's rate first."""
+def dtw_frames(motion: Motion, other: Motion) -> tuple[np.ndarray, np.ndarray]:
+    """Other take's frame ``(F,)`` matched to every frame of ``motion`` by DTW on the
+    bone-angle feature (both at the main take's rate), and the smooth warp ``(F,)`` it was
+    snapped from (for the local playback rate)."""
     from usdmotion.ops.edit.align import subsequence_dtw, warp_from_path
     from usdmotion.ops.segment import bone_angles
 
@@ -78,7 +79,7 @@ def dtw_frames(motion: Motion, other: Motion) -> np.ndarray:
     # the blend's warp is smoothed over 5 frames; snap each frame to the best match within ±2
     near = np.clip(np.rint(warp).astype(np.int64)[:, None] + np.arange(-2, 3)[None], 0, cost.shape[1] - 1)
     best = near[np.arange(len(a)), np.argmin(np.take_along_axis(cost, near, axis=1), axis=1)]
-    return np.maximum.accumulate(best.astype(np.float64)) * step
+    return np.maximum.accumulate(best.astype(np.float64)) * step, warp * step
 
 
 def align_takes(motion: Motion, other: Motion, frames: np.ndarray, times: np.ndarray, mode: str,
@@ -97,9 +98,9 @@ def align_takes(motion: Motion, other: Motion, frames: np.ndarray, times: np.nda
         position = (times - n / motion.fps) * other.fps + m
         rate = np.ones(len(frames))
     elif kind == "time":
-        warp = dtw_frames(motion, other)
-        position = np.interp(times * motion.fps, np.arange(motion.n_frames), warp)
-        rate = np.gradient(warp)[frames] * motion.fps / other.fps if motion.n_frames > 1 else np.ones(len(frames))
+        matched, smooth = dtw_frames(motion, other)
+        position = np.interp(times * motion.fps, np.arange(motion.n_frames), matched)
+        rate = np.gradient(smooth)[frames] * motion.fps / other.fps if motion.n_frames > 1 else np.ones(len(frames))
     else:
         position = times * other.fps
         rate = np.ones(len(frames))

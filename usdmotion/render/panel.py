@@ -5,7 +5,8 @@ time that moves linearly with it.
 Series: ``angle:NAME`` (degrees; any ``--angle`` name, values from
 :mod:`usdmotion.render.angles`, i.e. analyze's bend) and ``speed:JOINT`` (m/s; the norm of
 :func:`usdmotion.ops.analyse.analyse`'s filtered velocity, analyze's ``speed`` column). The
-strip is drawn once (Pillow); each frame copies it and draws the cursor.
+strip is drawn once (Pillow) from every source frame of the range; each output frame
+copies it and draws the cursor.
 """
 
 from __future__ import annotations
@@ -86,7 +87,9 @@ def strip_height(height: int, count: int) -> int:
 class PlotStrip:
     """The strip image ``(h, w, 3)`` and the cursor's column at each output frame."""
 
-    def __init__(self, series: list[Series], times: np.ndarray, width: int, height: int):
+    def __init__(self, series: list[Series], times: np.ndarray, width: int, height: int,
+                 cursor_times: np.ndarray | None = None):
+        """``series`` sampled at ``times (M,)`` s; the cursor at ``cursor_times (N,)`` s (default: ``times``)."""
         from PIL import Image, ImageDraw
 
         from usdmotion.render.overlay import _font
@@ -127,7 +130,8 @@ class PlotStrip:
         end = f"{t1:.2f} s   time (s)"
         pen.text((right - pen.textlength(end, font=font), height - 16), end, fill=INK, font=font)
         self.image = np.asarray(canvas).copy()
-        self.columns = np.rint(x).astype(np.int64)
+        cursor = times if cursor_times is None else cursor_times
+        self.columns = np.rint(left + (cursor - t0) / max(t1 - t0, 1e-12) * (right - left)).astype(np.int64)
 
     def frame(self, i: int) -> np.ndarray:
         """The strip with the cursor at output frame ``i``."""

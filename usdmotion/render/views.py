@@ -112,8 +112,10 @@ class Views:
             from usdmotion.render.panel import strip_height
 
             items = parse_panel(options.panel)
-            series = panel_series(motion, items, plan.frames)
-            self.strip = PlotStrip(series, plan.times, options.width, strip_height(options.height, len(items)))
+            every = np.arange(plan.frames.min(), plan.frames.max() + 1)  # the curves at the source rate
+            series = panel_series(motion, items, every)
+            self.strip = PlotStrip(series, every / motion.fps, options.width, strip_height(options.height, len(items)),
+                                   cursor_times=plan.frames / motion.fps)
         self.view_nodes = []
         if plan.cameras:  # --layout: one camera node per view in the one scene
             for cam in plan.cameras:
