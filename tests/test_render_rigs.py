@@ -308,3 +308,41 @@ def test_default_side_camera_follows_the_body_at_about_60_percent_of_the_height(
     assert len(shares["side"]) == 3
     assert all(0.45 < s < 0.75 for s in shares["side"]), shares
     assert max(shares["path"]) < 0.8 * min(shares["side"]), shares
+
+
+def with_helpers(motion: Motion, size: float) -> Motion:
+    """``motion`` with a twist bone under the left upper arm (half-way down it) and an IK
+    helper under the root, ``0.4 size`` to the side: leaves without End Sites."""
+    arm, forearm = motion.joint_index("LeftArm"), motion.joint_index("LeftForeArm")
+    f = motion.n_frames
+    identity = np.tile([1.0, 0.0, 0.0, 0.0], (f, 2, 1))
+    return Motion(joint_names=motion.joint_names + ("LeftArmTwist", "ik_hand_root"),
+                  parents=np.r_[motion.parents, arm, 0],
+                  offsets=np.r_[motion.offsets, [0.5 * motion.offsets[forearm]], [[0.4 * size, 0.0, 0.0]]],
+                  rotations=np.concatenate([motion.rotations, identity], axis=1),
+                  root_translation=motion.root_translation, fps=motion.fps,
+                  end_sites=np.r_[motion.end_sites, False, False], meters_per_unit=motion.meters_per_unit,
+                  up_axis=motion.up_axis)
+
+
+def test_twist_and_ik_helper_joints_get_no_body(tmp_path):
+    from tests.conftest import shared_path
+    from usdmotion.skin import bone_capsules, body_size
+
+    walk = read_motion(shared_path("cmu/cgspeed_12_01_walk.bvh"), units="asf").sliced(100, 101)
+    size = body_size(walk)
+    rig = with_helpers(walk, size)
+    caps = bone_capsules(rig)
+    helpers = [rig.joint_index("LeftArmTwist"), rig.joint_index("ik_hand_root")]
+    assert not np.isin(caps.joint, helpers).any()
+    rest = fk_arrays(rig.rotations[:1] * 0 + [1.0, 0, 0, 0], local_translations(rig)[:1], rig.parents)[1][0]
+    ends = np.linalg.norm(caps.end[:, None] - rest[helpers][None], axis=-1)
+    assert (ends > 1e-6 * size).all()  # no capsule ends at a helper either
+    options = dataclasses.replace(OPTIONS, camera="front", grid=False, style="both", contact_shadow=False)
+    render_motion(rig, tmp_path / "f/####.png", options)
+    image = read_image(tmp_path / "f/0000.png")
+    plan = plan_render(rig, options)
+    world = render_space(rig, fk_arrays(rig.rotations, local_translations(rig), rig.parents)[1][0])
+    x, y = project(world[rig.joint_index("ik_hand_root")], plan.camera.poses[0], plan.camera.yfov, SIZE, SIZE)
+    patch = image[int(y) - 2:int(y) + 3, int(x) - 2:int(x) + 3].astype(int)
+    assert np.abs(patch - image[2, 2].astype(int)).max() < 40, "a body or stick at the IK helper"

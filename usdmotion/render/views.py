@@ -48,11 +48,13 @@ class Actor:
             self.nodes.append(self.body_mesh.mesh)
         if style in ("stick", "both"):
             rest_len = np.linalg.norm(motion.offsets[1:], axis=1)
-            groups = body_groups(motion)  # no stick from a floor root or origin joint to the pelvis
-            bones = np.flatnonzero((rest_len > 1e-6 * body_size(motion)) & (groups[motion.parents[1:]] != NO_BODY)) + 1
+            # no stick from a floor root or origin joint to the pelvis, none to or from a helper joint
+            groups = body_groups(motion)
+            body = groups != NO_BODY
+            bones = np.flatnonzero((rest_len > 1e-6 * body_size(motion)) & body[motion.parents[1:]] & body[1:]) + 1
             joint_color = COLORS["ghost_stick"] if ghost else COLORS["joint"]
             self.stick = StickFigure(motion.parents, bones, 0.012 * body_size(motion) * self.scale,
-                                     np.float32(COLORS["bone"]), np.float32(joint_color))
+                                     np.float32(COLORS["bone"]), np.float32(joint_color), np.flatnonzero(body))
             self.nodes.append(self.stick.dynamic.mesh)
 
     def _space(self, points: np.ndarray) -> np.ndarray:
