@@ -95,3 +95,15 @@ def test_bad_align_fails_in_one_line_without_output(shared_file, tmp_path, capsy
     err = capsys.readouterr().err
     assert code == 2 and err.startswith("usdmotion: error: ") and message in err and len(err.strip().splitlines()) == 1
     assert not any(tmp_path.iterdir())
+
+
+def test_rigs_without_hips_compare_in_place_and_refuse_dtw(shared_file, tmp_path, capsys):
+    simple = str(shared_file("edge_cases/bvhanim_test_simple.bvh"))
+    base = ["render", simple, str(tmp_path / "out.mp4"), "--compare", simple, "--size", "160x120", "--style", "stick"]
+    assert main(base) == 0
+    assert (tmp_path / "out.mp4").is_file()
+    (tmp_path / "out.mp4").unlink()
+    assert main(base + ["--align", "time"]) == 2
+    err = capsys.readouterr().err
+    assert "--align time compares the limbs' bone angles: cannot find the joints" in err
+    assert len(err.strip().splitlines()) == 1 and not any(tmp_path.iterdir())

@@ -35,7 +35,8 @@ class Alignment:
 
     ``frames (N,)`` its source frames; ``turn (3, 3)`` and ``shift (3,)`` move its render-space
     points (``p @ turn.T + shift``); ``rate (N,)`` its local playback rate relative to the
-    main take (1 = same speed); ``mode`` the ``--align`` value.
+    main take (1 = same speed); ``mode`` the ``--align`` value; ``moved`` whether the
+    spatial alignment could be made (both takes have hips by role).
     """
 
     frames: np.ndarray
@@ -43,6 +44,7 @@ class Alignment:
     shift: np.ndarray
     rate: np.ndarray
     mode: str
+    moved: bool = True  # False: no hips found by role in one of the takes, so it was left in place
 
 
 def parse_align(text: str) -> tuple[str, int | None, int | None]:
@@ -68,8 +70,12 @@ def dtw_frames(motion: Motion, other: Motion) -> tuple[np.ndarray, np.ndarray]:
     from usdmotion.ops.edit.align import subsequence_dtw, warp_from_path
     from usdmotion.ops.segment import bone_angles
 
-    a = bone_angles(motion)
-    b = bone_angles(other)
+    try:
+        a, b = bone_angles(motion), bone_angles(other)
+    except UsdMotionError as exc:
+        detail = str(exc).split(": ", 1)[-1].split("; name them")[0]
+        raise UsdMotionError(f"--align time compares the limbs' bone angles: {detail} "
+                             "(use --align start or frame:N,M)") from None
     step = other.fps / motion.fps  # other frames per main frame
     grid = np.arange(0.0, other.n_frames - 1 + 1e-9, step) if other.n_frames > 1 else np.zeros(1)
     b = np.stack([np.interp(grid, np.arange(other.n_frames), b[:, k]) for k in range(b.shape[1])], axis=1)
@@ -105,7 +111,10 @@ def align_takes(motion: Motion, other: Motion, frames: np.ndarray, times: np.nda
         position = times * other.fps
         rate = np.ones(len(frames))
     other_frames = np.clip(np.rint(position), 0, last).astype(np.int64)
-    turn, shift = _match_pose(motion, other, int(frames[0]), int(other_frames[0]), joints_of)
+    try:
+        turn, shift = _match_pose(motion, other, int(frames[0]), int(other_frames[0]), joints_of)
+    except UsdMotionError:  # a rig without hips by role: compare in place, and say so
+        return Alignment(other_frames, np.eye(3), np.zeros(3), rate, kind, moved=False)
     return Alignment(other_frames, turn, shift, rate, kind)
 
 
@@ -135,4 +144,5 @@ def clock_text(alignment: Alignment, i: int, other_fps: float, name: str) -> str
     """One overlay line saying how the clocks map at output frame ``i``."""
     g = int(alignment.frames[i])
     how = {"time": f"DTW, {alignment.rate[i]:.2f}x", "start": "same clock", "frame": "from the paired frame"}
-    return f"{name or 'compare'}: frame {g}  {g / other_fps:6.3f} s  ({how[alignment.mode]})"
+    where = "" if alignment.moved else ", not moved: no hips found"
+    return f"{name or 'compare'}: frame {g}  {g / other_fps:6.3f} s  ({how[alignment.mode]}{where})"
