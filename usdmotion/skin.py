@@ -20,7 +20,7 @@ meshed with marching cubes in the rest pose:
 * **Body parts.** :func:`body_groups` splits the skeleton into the trunk (pelvis,
   spine, neck, head) and one group per limb (the subtree above each knee and elbow).
   Joints above the pelvis (a floor root, a static origin joint) and helper joints
-  (twist, IK, props: :data:`NOT_BODY`) get no capsule. The trunk tapers to
+  (twist, IK, props: :data:`usdmotion.body_parts.NOT_BODY`) get no capsule. The trunk tapers to
   :data:`TRUNK_END_RADIUS` at the neck, collars and hips; whatever the rig hangs on
   its head joint is replaced by one head (:data:`HEAD_RADIUS`) with a small nose that
   shows the facing direction.
@@ -46,6 +46,8 @@ import numpy as np
 
 from usdmotion.errors import UsdMotionError
 from usdmotion.kinematics import compose_transforms, fk_arrays, local_translations, rest_pose
+from usdmotion.body_parts import (HEAD_HEIGHT, HEAD_HEIGHT_RANGE, HEAD_RADIUS, NO_BODY, TRUNK, TRUNK_END_RADIUS,
+                                  tree_distance, body_groups, facing, head_joint)
 from usdmotion.motion import Motion, subtree_indices
 
 #: Influences (joints) per vertex; UsdSkel's ``elementSize`` of the skinning primvars.
@@ -172,65 +174,6 @@ def body_size(motion: Motion) -> float:
     return extent if extent > 0 else 1.0
 
 
-#: Joints that are not body segments (twist and roll bones, IK targets and poles, helpers,
-#: props): pattern on the lower-cased name without ``prefix:``. Such a joint gets no
-#: capsule when nothing but other such joints (or end sites) hangs below it.
-NOT_BODY = re.compile(r"twist|roll|(^|[_.\- ])ik|ik($|[_.\- ])|[a-z]ik$|helper|pole|target|prop|weapon|sword|"
-                      r"gun|null|dummy|ctrl|control|socket|attach|nub$")
-
-#: Radius (fraction of ``H``) the trunk's capsules taper to where they end at the neck
-#: or at a sided joint (collar, shoulder, hip): shoulders and neck base, not a dome.
-TRUNK_END_RADIUS = 0.045
-
-#: Groups of :func:`body_groups`: no surface (above the pelvis, helpers), trunk and head.
-NO_BODY, TRUNK = -1, 0
-
-
-def body_groups(motion: Motion) -> np.ndarray:
-    """Body part of every joint ``(J,)`` int: which surface the bones it drives join.
-
-    * ``TRUNK`` (0): pelvis, spine, neck, head, collar bones;
-    * ``1, 2, …``: one per limb: the subtree of the joint above each knee or elbow
-      (``LeftUpLeg``, ``lfemur``, ``LeftArm``, ``rShldr``…; names read by
-      :func:`usdmotion.skeleton_names.parse_side`), so a limb is meshed on its own
-      and never webbed to the other leg or to the trunk;
-    * ``NO_BODY`` (-1): the joints strictly above the pelvis (the common ancestor of the
-      legs: a root bone at the floor, a static origin joint) and helper joints
-      (:data:`NOT_BODY`) with only helpers or end sites below them.
-    """
-    from usdmotion.skeleton_names import ELBOW_WORDS, KNEE_WORDS, common_ancestor, parse_side
-
-    parents = motion.parents
-    n = motion.n_joints
-    groups = np.zeros(n, np.int64)
-    limb_roots, legs = [], []
-    for j, name in enumerate(motion.joint_names):  # topology-sized
-        side, base = parse_side(name)
-        p = int(parents[j])
-        if side is None or p < 0 or motion.end_sites[j]:
-            continue
-        if base in KNEE_WORDS or base in ELBOW_WORDS:
-            if parse_side(motion.joint_names[p])[0] == side and p not in limb_roots:
-                limb_roots.append(p)
-                if base in KNEE_WORDS:
-                    legs.append(p)
-    for k, root in enumerate(sorted(limb_roots)):
-        groups[subtree_indices(parents, root)] = k + 1
-    if len(legs) >= 2:
-        pelvis = common_ancestor(parents, legs[0], legs[1])
-        above = parents[pelvis]
-        while above >= 0:
-            groups[above] = NO_BODY
-            above = parents[above]
-    helper = np.array([bool(NOT_BODY.search(name.rsplit(":", 1)[-1].lower())) for name in motion.joint_names])
-    only_helpers = helper | motion.end_sites
-    for j in range(n - 1, 0, -1):  # children after parents: one backward pass
-        if not only_helpers[j] and parents[j] >= 0:
-            only_helpers[parents[j]] = False
-    groups[helper & only_helpers] = NO_BODY
-    return groups
-
-
 def bone_capsules(motion: Motion, thickness: float = 1.0, positions: np.ndarray | None = None) -> Capsules:
     """The capsules of :func:`build_body` (see the module notes), radii × ``thickness``.
 
@@ -285,37 +228,6 @@ def bone_capsules(motion: Motion, thickness: float = 1.0, positions: np.ndarray 
     return _with_head(motion, caps, rest, groups, size * thickness)
 
 
-#: Head of :func:`_with_head`, fractions of the skeleton size ``H``: radius, default
-#: height above the head joint (skull base to crown) and the accepted range of heights
-#: read from the rig's own head-top joint or End Site.
-HEAD_RADIUS, HEAD_HEIGHT, HEAD_HEIGHT_RANGE = 0.05, 0.12, (0.07, 0.2)
-
-
-def head_joint(motion: Motion, groups: np.ndarray | None = None) -> int | None:
-    """The joint the head hangs on: the shallowest trunk joint named ``head`` (not a head
-    top or end), else the deepest side-less trunk joint with no trunk joint below it (the
-    top of the neck of a rig without a head, ASF ``Neck``, if the rig has limbs); else None."""
-    from usdmotion.skeleton_names import parse_side
-
-    groups = body_groups(motion) if groups is None else groups
-    parents = motion.parents
-    depth = np.zeros(motion.n_joints, int)
-    for j in range(1, motion.n_joints):  # topology-sized
-        depth[j] = depth[parents[j]] + 1 if parents[j] >= 0 else 0
-    trunk = (groups == TRUNK) & ~motion.end_sites
-    named = [j for j in np.flatnonzero(trunk) if re.search(r"head(?!.*(top|end|nub))",
-                                                            motion.joint_names[j].rsplit(":", 1)[-1].lower())]
-    if named:
-        return int(min(named, key=lambda j: depth[j]))
-    if groups.max(initial=0) < 2:  # no limbs: no body to put a head on
-        return None
-    has_trunk_child = np.zeros(motion.n_joints, bool)
-    has_trunk_child[parents[np.flatnonzero(trunk)[1:]]] = True
-    tops = [j for j in np.flatnonzero(trunk & ~has_trunk_child) if parse_side(motion.joint_names[j])[0] is None
-            and parents[j] >= 0]
-    return int(max(tops, key=lambda j: depth[j])) if tops else None
-
-
 def _with_head(motion: Motion, caps: Capsules, rest: np.ndarray, groups: np.ndarray, scale: float) -> Capsules:
     """Replace whatever the rig hangs on its head joint (head-top joints, eyes, jaw, a
     zero-length End Site's sphere) by one head: a capsule of :data:`HEAD_RADIUS` along the
@@ -337,7 +249,7 @@ def _with_head(motion: Motion, caps: Capsules, rest: np.ndarray, groups: np.ndar
     start = rest[head] + up * min(radius, 0.5 * height)
     end = rest[head] + up * max(height - radius, 0.5 * height)
     parts = [caps.subset(keep)]
-    nose = _facing(motion, rest, groups, up)
+    nose = facing(motion, rest, groups, up)
     extra_start, extra_end, extra_r = [start], [end], [radius]
     if nose is not None:
         centre = 0.5 * (start + end)
@@ -349,25 +261,6 @@ def _with_head(motion: Motion, caps: Capsules, rest: np.ndarray, groups: np.ndar
                           np.full(k, head, np.int32), np.ones(k, bool), np.full(k, TRUNK, np.int32)))
     return Capsules(*(np.concatenate([getattr(c, f) for c in parts])
                       for f in ("start", "end", "r0", "r1", "joint", "solid", "group")))
-
-
-def _facing(motion: Motion, rest: np.ndarray, groups: np.ndarray, up: np.ndarray) -> np.ndarray | None:
-    """Unit front direction ``(3,)`` of the bind pose (``left × up``), from the left and
-    right limb roots; None when the rig has no sided limbs."""
-    from usdmotion.skeleton_names import parse_side
-
-    sides = {"left": [], "right": []}
-    for g in range(1, int(groups.max(initial=0)) + 1):
-        root = int(np.flatnonzero(groups == g)[0])
-        side = parse_side(motion.joint_names[root])[0]
-        if side in sides:
-            sides[side].append(rest[root])
-    if not sides["left"] or not sides["right"]:
-        return None
-    left = np.mean(sides["left"], axis=0) - np.mean(sides["right"], axis=0)
-    front = np.cross(left, up)
-    n = float(np.linalg.norm(front))
-    return front / n if n > 0 else None
 
 
 def _point_radii(motion, point, leaf, rest, bone, child, parent, r0, r1, scale) -> np.ndarray:
@@ -414,7 +307,7 @@ def bind_frame(motion: Motion, candidates: int = 16) -> int | None:
     joint = caps.joint[keep]
     # the child joint of each bone: the joint at its end in the rest pose
     child = np.argmin(np.linalg.norm(caps.end[keep][:, None] - rest_p[None], axis=-1), axis=1)
-    far = _tree_distance(motion.parents)[joint[:, None], joint[None]] >= 3
+    far = tree_distance(motion.parents)[joint[:, None], joint[None]] >= 3
     clearance = 0.04 * size  # limbs closer than this get bridged by the smooth union
     t = np.linspace(0.0, 1.0, 8)
     samples = poses_p[:, joint, None] + t[None, None, :, None] * (poses_p[:, child] - poses_p[:, joint])[:, :, None]
@@ -427,20 +320,6 @@ def bind_frame(motion: Motion, candidates: int = 16) -> int | None:
     scores = np.asarray(scores)
     best = 0 if scores[0] <= scores.min() + 0.05 * size else int(np.argmin(scores))
     return None if best == 0 else int(frames[best - 1])
-
-
-def _tree_distance(parents: np.ndarray) -> np.ndarray:
-    """Number of edges between every pair of joints ``(J, J)`` (topology only)."""
-    n = len(parents)
-    depth = np.zeros(n, int)
-    ancestors = np.eye(n, dtype=bool)
-    for j in range(1, n):  # topology, O(J²) booleans
-        depth[j] = depth[parents[j]] + 1
-        ancestors[j] = ancestors[parents[j]]
-        ancestors[j, j] = True
-    common = (ancestors[:, None, :] & ancestors[None, :, :])
-    lca_depth = np.where(common, depth[None, None, :], -1).max(axis=-1)
-    return depth[:, None] + depth[None, :] - 2 * lca_depth
 
 
 def capsule_distance(points: np.ndarray, caps: Capsules) -> np.ndarray:
@@ -540,7 +419,7 @@ def skin_weights(vertices: np.ndarray, caps: Capsules, parents: np.ndarray, size
     four largest are kept and normalised.
     """
     n_joints = len(parents)
-    near_in_tree = _tree_distance(parents) <= 2
+    near_in_tree = tree_distance(parents) <= 2
     idx = np.zeros((len(vertices), INFLUENCES), np.int64)
     top = np.zeros((len(vertices), INFLUENCES))
     k = min(INFLUENCES, n_joints)

@@ -63,8 +63,8 @@ def render(
     options = RenderOptions(width=width, height=height, start=start, end=end, fps=fps, speed=speed, camera=camera,
                             style=style, grid=grid, grid_scale=grid_scale, traces=tuple(trace or ()),
                             overlay=overlay, compare_mode=compare_mode, shadows=shadows, msaa=msaa, quality=quality,
-                            labels=(source.name, compare.name if compare else ""), angles=tuple(angle or ()), align=align, panel=panel, layout=layout,
-                            contact_shadow=contact_shadow)
+                            labels=(source.name, compare.name if compare else ""), angles=tuple(angle or ()),
+                            align=align, panel=panel, layout=layout, contact_shadow=contact_shadow)
     if strobe is not None or strobe_every is not None:
         from usdmotion.render.strobe import render_strobe
 

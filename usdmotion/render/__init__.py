@@ -119,6 +119,13 @@ def _check_options(options: RenderOptions) -> None:
         raise UsdMotionError(f"--grid-scale must be positive, got {options.grid_scale}")
 
 
+def render_joints(motion: Motion, frames: np.ndarray) -> np.ndarray:
+    """Joint positions ``(N, J, 3)`` at ``frames`` in render space (see :mod:`usdmotion.render.space`)."""
+    from usdmotion.render.space import render_joints as joints
+
+    return joints(motion, frames)
+
+
 def plan_render(motion: Motion, options: RenderOptions, other: Motion | None = None) -> RenderPlan:
     """Frames, times and camera of a render (no GL needed; tests project joints with it)."""
     from usdmotion.render.camera import is_usd_camera, preset_track, usd_camera_track
@@ -196,11 +203,6 @@ def _joint_positions(motion: Motion, frames: np.ndarray) -> np.ndarray:
     return fk_arrays(motion.rotations[frames], local_translations(motion)[frames], motion.parents)[1]
 
 
-def render_joints(motion: Motion, frames: np.ndarray) -> np.ndarray:
-    """Joint positions ``(N, J, 3)`` at ``frames`` in render space (metres, Y up)."""
-    from usdmotion.render.scene import to_render_space
-
-    return to_render_space(_joint_positions(motion, frames), motion.meters_per_unit, motion.up_axis)
 
 
 def render_motion(motion: Motion, output: str | Path, options: RenderOptions = RenderOptions(),

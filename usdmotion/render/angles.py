@@ -2,10 +2,10 @@
 
 An angle is named by a role (``knee_left``, ``left_knee``, ``elbow_right``, ``hip_left``,
 ``shoulder_right``, ``ankle_left``, ``wrist_right``: joints found by
-:func:`usdmotion.ops.roles.find_roles`), ``trunk`` (lean of the root → chest line from
+:func:`usdmotion.ops.segment.roles.find_roles`), ``trunk`` (lean of the root → chest line from
 vertical), or three joint names ``A,B,C`` (the angle at ``B``).
 
-Values are :func:`usdmotion.ops.analyse.bend_angles` of the world positions, so they are
+Values are :func:`usdmotion.ops.analyse.measures.bend_angles` of the world positions, so they are
 ``usdmotion analyze``'s ``bend`` column: 0° = straight, e.g. knee flexion; for a role the
 bones are those of analyze's own bend triple at that joint. Everything is computed for all
 output frames at once; drawing is 2-D (Pillow) on the rendered image. The text drawn on
@@ -47,8 +47,8 @@ def parse_angle(motion: Motion, text: str) -> AngleSpec:
         UsdMotionError: an unknown name, a joint that is not in the motion, or a joint
             without a defined bend (a root, a leaf, a branching joint).
     """
-    from usdmotion.ops.analyse import bend_triples
-    from usdmotion.ops.roles import find_roles
+    from usdmotion.ops.analyse.measures import bend_triples
+    from usdmotion.ops.segment.roles import find_roles
 
     text = text.strip()
     if "," in text:
@@ -83,10 +83,10 @@ def parse_angle(motion: Motion, text: str) -> AngleSpec:
 def angle_values(specs: list[AngleSpec], positions: np.ndarray, up: np.ndarray) -> np.ndarray:
     """Angles ``(N, K)`` in degrees at world positions ``positions (N, J, 3)``.
 
-    Bends through :func:`usdmotion.ops.analyse.bend_angles` (analyze's ``bend``); the trunk
+    Bends through :func:`usdmotion.ops.analyse.measures.bend_angles` (analyze's ``bend``); the trunk
     as the angle between root → chest and ``up (3,)``.
     """
-    from usdmotion.ops.analyse import bend_angles
+    from usdmotion.ops.analyse.measures import bend_angles
 
     out = np.empty((positions.shape[0], len(specs)))
     bends = [k for k, s in enumerate(specs) if not s.trunk]

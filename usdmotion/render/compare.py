@@ -6,7 +6,7 @@ other take goes with each output frame, and where to put it.
   ``frame:N,M``: the main take's frame ``N`` shows with the other's frame ``M``, both at
   their own rate from there;
   ``time``: dynamic time warping on the 8-D bone-angle feature
-  (:func:`usdmotion.ops.segment.bone_angles`, joints by role) with the blend code's DTW
+  (:func:`usdmotion.ops.segment.detect.bone_angles`, joints by role) with the blend code's DTW
   (:func:`usdmotion.ops.edit.align.subsequence_dtw` and ``warp_from_path``), each frame
   then snapped to the best match within ±2 frames of that smoothed warp: each frame of
   the main take gets the other take's best-matching frame, monotone in time.
@@ -68,7 +68,7 @@ def dtw_frames(motion: Motion, other: Motion) -> tuple[np.ndarray, np.ndarray]:
     bone-angle feature (both at the main take's rate), and the smooth warp ``(F,)`` it was
     snapped from (for the local playback rate)."""
     from usdmotion.ops.edit.align import subsequence_dtw, warp_from_path
-    from usdmotion.ops.segment import bone_angles
+    from usdmotion.ops.segment.detect import bone_angles
 
     try:
         a, b = bone_angles(motion), bone_angles(other)
@@ -121,7 +121,7 @@ def align_takes(motion: Motion, other: Motion, frames: np.ndarray, times: np.nda
 def _match_pose(motion: Motion, other: Motion, f: int, g: int, joints_of) -> tuple[np.ndarray, np.ndarray]:
     """Turn about Y and floor shift putting ``other``'s root and heading at frame ``g``
     onto ``motion``'s at frame ``f``."""
-    from usdmotion.ops.roles import find_roles
+    from usdmotion.ops.segment.roles import find_roles
 
     def root_and_heading(take: Motion, frame: int):
         roles = find_roles(take)

@@ -59,7 +59,7 @@ def panel_series(motion: Motion, items: list[tuple[str, str]], frames: np.ndarra
     for kind, name in items:
         if kind == "angle":
             spec = parse_angle(motion, name)
-            from usdmotion.render import render_joints
+            from usdmotion.render.space import render_joints
 
             values = angle_values([spec], render_joints(motion, frames), np.array([0.0, 1.0, 0.0]))[:, 0]
             out.append(Series(f"{spec.name} (deg)", "deg", values))

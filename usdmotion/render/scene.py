@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from usdmotion.render.gl import DynamicMesh, import_pyrender
+from usdmotion.render.space import to_render_space  # noqa: F401  (re-exported: scene content is in render space)
 
 #: Colours (linear RGBA) of the scene's parts.
 COLORS = {
@@ -34,12 +35,6 @@ def material(color, double_sided: bool = False):
                                               doubleSided=double_sided)
 
 
-def to_render_space(points: np.ndarray, meters_per_unit: float, up_axis: str) -> np.ndarray:
-    """File coordinates ``(..., 3)`` → metres, Y up (Z-up: ``(x, y, z) → (x, z, -y)``)."""
-    points = np.asarray(points, dtype=np.float64) * meters_per_unit
-    if up_axis == "Z":
-        points = np.stack([points[..., 0], points[..., 2], -points[..., 1]], axis=-1)
-    return points
 
 
 # ------------------------------------------------------------------ stick figure

@@ -89,7 +89,7 @@ def render_strobe(motion: Motion, output: str | Path, options, count: int | None
 
 def fixed_camera(motion: Motion, frames: np.ndarray, options, pad: float):
     """The preset camera of ``options.camera`` held fixed, framing the joints at ``frames``."""
-    from usdmotion.render import render_joints
+    from usdmotion.render.space import render_joints
     from usdmotion.render.camera import load_presets, preset_track
 
     presets = load_presets()
@@ -150,7 +150,7 @@ def _draw(motion: Motion, frames: np.ndarray, plan, options) -> np.ndarray:
 
 def projected_roots(motion: Motion, frames: np.ndarray, options) -> np.ndarray:
     """Pixel positions ``(N, 2)`` of the root at ``frames`` in the still (for tests, checks)."""
-    from usdmotion.render import render_joints
+    from usdmotion.render.space import render_joints
     from usdmotion.render.camera import project
     from usdmotion.skin import body_size
 

@@ -14,7 +14,8 @@ from usdmotion.render.compare import clock_text
 from usdmotion.render.overlay import draw_text
 from usdmotion.render.scene import (COLORS, StickFigure, add_lights, grid_mesh, material, to_render_space,
                                     tube_mesh)
-from usdmotion.skin import NO_BODY, body_groups, body_size, build_body, centre_of_mass, lbs, skinning_matrices
+from usdmotion.body_parts import NO_BODY, body_groups
+from usdmotion.skin import body_size, build_body, centre_of_mass, lbs, skinning_matrices
 
 _UP_Z = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 
