@@ -99,33 +99,41 @@ class Views:
         self.scenes = scenes
         self._add_static(motion, other)
         self.angles = self._angles(motion) if options.angles else None
-        self.shadow = None
-        if options.contact_shadow and self.actors[0].body is not None:
-            from usdmotion.render.shadow import ContactShadow
-
-            main = self.actors[0]
-            size = main.body.size * main.scale
-            self.shadow = ContactShadow(0.3 * size, plan.ground, size)
-            for scene in self.scenes[:1]:
-                scene.add(self.shadow.dynamic.mesh)
-        self.strip = None
-        if options.panel:
-            from usdmotion.render.panel import PlotStrip, panel_series, parse_panel
-
-            from usdmotion.render.panel import strip_height
-
-            items = parse_panel(options.panel)
-            every = np.arange(plan.frames.min(), plan.frames.max() + 1)  # the curves at the source rate
-            series = panel_series(motion, items, every)
-            self.strip = PlotStrip(series, every / motion.fps, options.width, strip_height(options.height, len(items)),
-                                   cursor_times=plan.frames / motion.fps)
-        self.view_nodes = []
-        if plan.cameras:  # --layout: one camera node per view in the one scene
-            for cam in plan.cameras:
-                camera = pyrender.PerspectiveCamera(yfov=cam.yfov, aspectRatio=plan.panel[0] / plan.panel[1],
-                                                    znear=cam.znear, zfar=cam.zfar)
-                self.view_nodes.append(self.scenes[0].add(camera, pose=cam.poses[0]))
+        self.shadow = self._contact_shadow() if options.contact_shadow else None
+        self.strip = self._plot_strip(motion) if options.panel else None
+        self.view_nodes = self._view_cameras(pyrender) if plan.cameras else []
         self.renderer = offscreen_renderer(*plan.panel, msaa=options.msaa)
+
+    def _contact_shadow(self):
+        """The :class:`~usdmotion.render.shadow.ContactShadow` under the main body (None: no body)."""
+        from usdmotion.render.shadow import ContactShadow
+
+        main = self.actors[0]
+        if main.body is None:
+            return None
+        size = main.body.size * main.scale
+        shadow = ContactShadow(0.3 * size, self.plan.ground, size)
+        self.scenes[0].add(shadow.dynamic.mesh)
+        return shadow
+
+    def _plot_strip(self, motion: Motion):
+        """The ``--panel`` :class:`~usdmotion.render.panel.PlotStrip`: curves at every source frame."""
+        from usdmotion.render.panel import PlotStrip, panel_series, parse_panel, strip_height
+
+        plan, options = self.plan, self.options
+        items = parse_panel(options.panel)
+        every = np.arange(plan.frames.min(), plan.frames.max() + 1)
+        return PlotStrip(panel_series(motion, items, every), every / motion.fps, options.width,
+                         strip_height(options.height, len(items)), cursor_times=plan.frames / motion.fps)
+
+    def _view_cameras(self, pyrender) -> list:
+        """``--layout``: one camera node per view in the one scene."""
+        nodes = []
+        for cam in self.plan.cameras:
+            camera = pyrender.PerspectiveCamera(yfov=cam.yfov, aspectRatio=self.plan.panel[0] / self.plan.panel[1],
+                                                znear=cam.znear, zfar=cam.zfar)
+            nodes.append(self.scenes[0].add(camera, pose=cam.poses[0]))
+        return nodes
 
     def _angles(self, motion: Motion):
         """The :class:`~usdmotion.render.angles.AngleOverlay` of ``--angle`` on the main view."""
