@@ -346,3 +346,31 @@ def test_twist_and_ik_helper_joints_get_no_body(tmp_path):
     x, y = project(world[rig.joint_index("ik_hand_root")], plan.camera.poses[0], plan.camera.yfov, SIZE, SIZE)
     patch = image[int(y) - 2:int(y) + 3, int(x) - 2:int(x) + 3].astype(int)
     assert np.abs(patch - image[2, 2].astype(int)).max() < 40, "a body or stick at the IK helper"
+
+
+@pytest.mark.parametrize("label", ["CMU cgspeed", "CMU DAZ", "Mixamo", "Bandai Namco", "OptiTrack"])
+def test_the_nose_points_where_the_toes_point(label):
+    """The head's nose (the facing cue) sits in front of the head, front taken here from the
+    feet of the bind pose (ankle → toe, horizontal), not from the left/right limbs the body
+    builder uses."""
+    from tests.conftest import SHARED_DATA
+    from usdmotion.body_parts import head_joint
+    from usdmotion.skin import bind_pose, bone_capsules
+
+    relative, kwargs = next((r, k) for name, r, k in FAMILIES if name == label)
+    if not (SHARED_DATA / relative).is_file():
+        pytest.skip(f"{relative} not in the shared corpus")
+    motion = read_motion(SHARED_DATA / relative, **kwargs)
+    rest = bind_pose(motion)[1]
+    caps = bone_capsules(motion, positions=rest)
+    on_head = np.flatnonzero(caps.joint == head_joint(motion))
+    assert len(on_head) == 2  # one head, one nose
+    nose, head = on_head[np.argsort(caps.r0[on_head])]
+    assert caps.r0[nose] < 0.5 * caps.r0[head] and np.all(caps.start[nose] == caps.end[nose])
+    up = np.zeros(3)
+    up[1 if motion.up_axis == "Y" else 2] = 1.0
+    ankles = [a for _, a in legs(motion).values()]
+    forward = np.mean([rest[motion.children(a)[0]] - rest[a] for a in ankles], axis=0)  # ankle → toe
+    forward -= (forward @ up) * up
+    centre = 0.5 * (caps.start[head] + caps.end[head])
+    assert (caps.start[nose] - centre) @ forward > 0
