@@ -233,7 +233,7 @@ class Views:
                 draw += time.perf_counter() - t0
                 emit(image, int(i))
                 if progress is not None:
-                    progress(1)
+                    progress(int(i) + 1, n, "rendering")
         timings.update(skin=skin, render=draw)
 
     def _compose(self, images: list[np.ndarray], i: int) -> np.ndarray:
