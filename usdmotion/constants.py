@@ -24,3 +24,9 @@ UP_AXES = ("Y", "Z")
 
 #: Largest frame count accepted from a file header before we call it absurd.
 MAX_FRAMES = 100_000_000
+
+#: Deepest joint chain accepted (root = depth 0). UsdSkel names every joint by its full
+#: path from the root, so the joint tokens of a chain grow with the square of its depth
+#: (a 50,000-deep chain needs gigabytes); real rigs stay far below: a body is ~10 deep,
+#: fingers and spline tails/ropes add tens. 1,000 levels keeps paths under ~64 kB.
+MAX_JOINT_DEPTH = 1_000

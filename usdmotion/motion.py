@@ -13,7 +13,7 @@ from typing import Literal
 
 import numpy as np
 
-from usdmotion.constants import UP_AXES
+from usdmotion.constants import MAX_JOINT_DEPTH, UP_AXES
 from usdmotion.errors import TopologyError
 
 RootOffset = Literal["add", "replace"]
@@ -43,14 +43,21 @@ def validate_topology(parents: np.ndarray) -> tuple[bool, str]:
     if np.any(too_late):
         j = int(np.flatnonzero(too_late)[0]) + 1
         return False, f"joint {j} has parent {parents[j]}, which does not come before it (cycle or bad order)"
+    depth = joint_depths(parents)
+    if depth.max() > MAX_JOINT_DEPTH:
+        j = int(np.argmax(depth > MAX_JOINT_DEPTH))
+        return False, (f"joint {j} is {int(depth[j])} levels deep; at most {MAX_JOINT_DEPTH} are supported "
+                       "(far more than any real rig)")
     return True, ""
 
 
 def joint_depths(parents: np.ndarray) -> np.ndarray:
-    """Depth of every joint ``(J,)`` (root = 0), for a valid parent array."""
+    """Depth of every joint ``(J,)`` (root = 0), for a parent array with parents before children."""
+    parents = np.asarray(parents, dtype=np.int64)
     depth = np.zeros(len(parents), dtype=np.int64)
-    for j in range(1, len(parents)):  # topology only, O(J)
-        depth[j] = depth[parents[j]] + 1
+    for j, p in enumerate(parents.tolist()):  # topology only, O(J)
+        if j:
+            depth[j] = depth[p] + 1
     return depth
 
 

@@ -42,16 +42,19 @@ def render(
 ) -> None:
     """Render a motion offscreen to a video or image sequence (skinned body, stick figure)."""
     from usdmotion.cli._progress import progress
-    from usdmotion.render import RenderOptions, output_frames, render_motion
+    from usdmotion.render import RenderOptions, check_options, output_frames, render_motion
+    from usdmotion.render.output import check_output
 
     width, height = _size(size)
     start, end = parse_start_stop(frames)
-    motion = read_input(source, units, up_axis, root_offset, lenient)
-    other = read_input(compare, units, up_axis, root_offset, lenient) if compare else None
     options = RenderOptions(width=width, height=height, start=start, end=end, fps=fps, speed=speed, camera=camera,
                             style=style, grid=grid, grid_scale=grid_scale, traces=tuple(trace or ()),
                             overlay=overlay, compare_mode=compare_mode, shadows=shadows, msaa=msaa, quality=quality,
                             labels=(source.name, compare.name if compare else ""))
+    check_options(options)  # every option before any work
+    check_output(output, width, height)
+    motion = read_input(source, units, up_axis, root_offset, lenient)
+    other = read_input(compare, units, up_axis, root_offset, lenient) if compare else None
     total = len(output_frames(motion, options)[0])
     with progress(f"rendering {output.name}", total=total, unit="frames") as update:
         result = render_motion(motion, output, options, other, progress=lambda n: update(n))

@@ -44,8 +44,10 @@ def read_motion(path: str | os.PathLike, root_offset: str = "auto", units: str |
     if kind == "usd":
         from usdmotion.io.bvh import resolve_units
         from usdmotion.io.usd import read_usd
+        from usdmotion.io.usd_diagnostics import usd_diagnostics
 
-        motion = read_usd(path)
+        with usd_diagnostics(path):
+            motion = read_usd(path)
         changes = {}
         if units is not None:
             changes["meters_per_unit"] = resolve_units(units)

@@ -6,7 +6,7 @@ Produces plain arrays; nothing here knows about rotations. The grammar accepted:
     ROOT name {                      # name may contain spaces and ':'
         OFFSET x y z                 # exactly three numbers on the line
         CHANNELS n name_1 ... name_n # any of X/Y/Z position/rotation, any order
-        JOINT name { ... }           # any depth (no recursion: 10,000 levels are fine)
+        JOINT name { ... }           # up to MAX_JOINT_DEPTH (1,000) levels, no recursion
         End Site { [OFFSET x y z] }  # the OFFSET may be missing (zero)
     }
     MOTION
@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from usdmotion.constants import MAX_JOINT_DEPTH
 from usdmotion.errors import BvhParseError
 from usdmotion.motion import CHANNEL_NAMES
 
@@ -180,6 +181,9 @@ def _parse_hierarchy(cur: _Cursor, header: BvhHeader) -> None:
             brace = cur.next("'{'")
             if brace.text != "{":
                 raise cur.error(brace, f"expected '{{' after {kw.text} {name}, found {brace.text!r}")
+            if len(stack) > MAX_JOINT_DEPTH:
+                raise cur.error(kw, f"{name} is {len(stack)} levels deep; at most {MAX_JOINT_DEPTH} are "
+                                    "supported (far more than any real rig)")
             header.joint_names.append(name)
             header.parents.append(parent)
             header.offsets.append((0.0, 0.0, 0.0))

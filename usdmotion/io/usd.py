@@ -30,6 +30,7 @@ import numpy as np
 
 from usdmotion.errors import OutputError, UsdMotionWarning, UsdReadError
 from usdmotion.io.atomic import atomic_output
+from usdmotion.io.usd_diagnostics import usd_error_message
 from usdmotion.kinematics import compose_transforms, local_translations, rest_pose
 from usdmotion.motion import Motion
 from usdmotion.rotations import matrix_to_quat, quat_mul, quat_rotate, wxyz_to_xyzw
@@ -201,8 +202,8 @@ def _open_stage(path: Path):
     try:
         stage = Usd.Stage.Open(str(path))
     except Tf.ErrorException as exc:
-        first = str(exc).strip().splitlines()
-        raise UsdReadError(path, f"cannot open as USD: {first[-1].strip() if first else exc}") from None
+        line, message = usd_error_message(str(exc))
+        raise UsdReadError(path, f"cannot open as USD: {message}", line) from None
     if stage is None:
         raise UsdReadError(path, "cannot open as USD")
     return stage

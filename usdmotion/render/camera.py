@@ -131,11 +131,14 @@ def usd_camera_track(spec: str, times: np.ndarray) -> CameraTrack:
     timeCodesPerSecond), converted to render space (metres, Y up)."""
     from pxr import Gf, Usd, UsdGeom
 
+    from usdmotion.io.usd_diagnostics import usd_diagnostics
+
     match = _USD_CAMERA.match(spec)
     path, prim_path = Path(match["file"]), match["prim"]
     if not path.is_file():
         raise InputError(path, "no such camera file")
-    stage = Usd.Stage.Open(str(path))
+    with usd_diagnostics(path):
+        stage = Usd.Stage.Open(str(path))
     if stage is None:
         raise InputError(path, "cannot open as USD")
     if prim_path:

@@ -146,7 +146,9 @@ CASES: dict[str, tuple[str | bytes, str | None, str]] = {
     "row_nan": (sub("1 90 0 10", "1 nan 0 10"), "1 nan", "non-finite"),
     "row_inf": (sub("0 90 0 0 0", "0 90 0 -inf 0"), "0 90 0 -inf", "non-finite"),
     "giant_swing_paper": (GIANT_SWING_PAPER, "OFFSET 0 0 10.0 0.0", "OFFSET has 4 values, expected 3"),
-    "deep_nesting_unclosed": (deep_unclosed(10_000), "MOTION", "3 '}' missing"),
+    "deep_nesting_unclosed": (deep_unclosed(1_000), "MOTION", "3 '}' missing"),
+    # MAX_JOINT_DEPTH = 1,000: joint j1001 is one level too deep (issue 16 item 1).
+    "chain_too_deep": (deep_unclosed(1_005), "JOINT j1001\n", "1001 levels deep; at most 1000"),
 }
 
 

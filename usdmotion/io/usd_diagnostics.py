@@ -1,0 +1,86 @@
+"""USD's C++ diagnostics turned into usdmotion messages.
+
+USD reports problems through its own diagnostic system: errors become a
+``Tf.ErrorException`` whose text is several ``Error in 'pxrInternal_…::Func' at line N in
+file …/stage.cpp : '…'`` records, and warnings go straight to stderr
+(``Warning: in _Init at line 109 of …/skelDefinition.cpp``). Users must see neither:
+
+* :func:`usd_diagnostics` traps both while a stage is read (``pxr.Tf.DiagnosticTrap``),
+  re-issues each distinct warning as one :class:`~usdmotion.errors.UsdMotionWarning`
+  ``FILE: </prim>: message`` and turns a raised error into one
+  :class:`~usdmotion.errors.UsdReadError` naming the file and, for a text-format parse
+  error, its ``.usda`` line.
+* :func:`usd_error_message` does the latter for a ``Tf.ErrorException`` caught elsewhere.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import re
+import warnings
+from collections.abc import Iterator
+
+from usdmotion.errors import UsdMotionWarning, UsdReadError
+
+#: At most this many distinct USD warnings are shown per file (then a count).
+MAX_WARNINGS = 5
+
+_RECORD = re.compile(r"Error in '[^']*' at line \d+ in file [^:]* : '(.*?)'\s*(?=\n\s*Error in |\Z)", re.S)
+_NAMESPACE = re.compile(r"pxrInternal_v\w*?__pxrReserved__::|\b\w+::")
+_WHERE = re.compile(r"^@?(?P<file>[^@\n]*?)@?:(?P<line>\d+):(?:(?P<col>\d+):)?\s*(?P<msg>.*)$", re.S)
+
+
+def _clean(text: str) -> str:
+    """One line without C++ namespaces or stray whitespace."""
+    return " ".join(_NAMESPACE.sub("", text).split())
+
+
+def usd_error_message(text: str) -> tuple[int | None, str]:
+    """``(usda_line or None, message)`` of a ``Tf.ErrorException``'s text.
+
+    The most specific record wins: a parse error ``file:line:col: …`` over the generic
+    ``Failed to open layer @file@`` that follows it.
+    """
+    records = [r.strip() for r in _RECORD.findall(text)] or [text.strip()]
+    for record in records:
+        where = _WHERE.match(record)
+        if where and where["file"]:
+            return int(where["line"]), _clean(where["msg"]) or "cannot parse"
+    message = _clean(records[0]) if records and records[0] else ""
+    return None, message or "cannot open as USD"
+
+
+def _warning_text(diagnostic) -> str:
+    text = _clean(str(getattr(diagnostic, "commentary", "") or ""))
+    return text.replace(" -- ", ": ", 1) if text.startswith("/") else text
+
+
+@contextlib.contextmanager
+def usd_diagnostics(path: str | os.PathLike) -> Iterator[None]:
+    """Trap USD diagnostics raised inside the block (reading ``path``).
+
+    Raises:
+        UsdReadError: a ``Tf.ErrorException`` escaped the block (``path[:usda_line]: message``).
+    """
+    from pxr import Tf
+
+    path = os.fspath(path)
+    with Tf.DiagnosticTrap() as trap:
+        try:
+            yield
+        except Tf.ErrorException as exc:
+            line, message = usd_error_message(str(exc))
+            raise UsdReadError(path, f"cannot read as USD: {message}", line) from None
+        finally:
+            texts = [_warning_text(d) for d in list(trap.GetWarnings()) + list(trap.GetErrors())]
+            trap.Clear()
+            _reissue(path, texts)
+
+
+def _reissue(path: str, texts: list[str]) -> None:
+    distinct = list(dict.fromkeys(t for t in texts if t))
+    for text in distinct[:MAX_WARNINGS]:
+        warnings.warn(f"{path}: USD: {text}", UsdMotionWarning, stacklevel=4)
+    if len(distinct) > MAX_WARNINGS:
+        warnings.warn(f"{path}: USD: {len(distinct) - MAX_WARNINGS} more warnings", UsdMotionWarning, stacklevel=4)
