@@ -30,3 +30,13 @@ MAX_FRAMES = 100_000_000
 #: (a 50,000-deep chain needs gigabytes); real rigs stay far below: a body is ~10 deep,
 #: fingers and spline tails/ropes add tens. 1,000 levels keeps paths under ~64 kB.
 MAX_JOINT_DEPTH = 1_000
+
+#: Largest magnitude of any number read from a file (positions in file units, angles in
+#: degrees). Beyond it no digit survives USD's float32 samples (max 3.4e38) or a sum in
+#: forward kinematics; a kilometre in micrometres is 1e9.
+MAX_ABS_VALUE = 1e15
+
+#: Frame rates accepted (frames per second): one frame an hour (time-lapse) to a
+#: megahertz sensor. ``Frame Time: 1e300`` is a typo, not a recording.
+MIN_FPS = 1.0 / 3600.0
+MAX_FPS = 1e6

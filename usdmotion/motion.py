@@ -13,7 +13,7 @@ from typing import Literal
 
 import numpy as np
 
-from usdmotion.constants import MAX_JOINT_DEPTH, UP_AXES
+from usdmotion.constants import MAX_FPS, MAX_JOINT_DEPTH, MIN_FPS, UP_AXES
 from usdmotion.errors import TopologyError
 
 RootOffset = Literal["add", "replace"]
@@ -181,8 +181,9 @@ class Motion:
                                  "use Motion.with_frames() when the frame count changes")
             sc.setflags(write=False)
             set_(self, "source_channels", sc)
-        if not (np.isfinite(self.fps) and self.fps > 0):
-            raise ValueError(f"fps must be a positive finite number, got {self.fps}")
+        if not (MIN_FPS <= self.fps <= MAX_FPS):
+            raise ValueError(f"fps must be a number in {MIN_FPS:.3g}..{MAX_FPS:g} (one frame an hour to a "
+                             f"megahertz), got {self.fps}")
         set_(self, "fps", float(self.fps))
         if not (np.isfinite(self.meters_per_unit) and self.meters_per_unit > 0):
             raise ValueError(f"meters_per_unit must be positive, got {self.meters_per_unit}")

@@ -31,10 +31,62 @@ def read_motion(path: str | os.PathLike, root_offset: str = "auto", units: str |
 
     For BVH, ``units`` (default ``"cm"``) and ``up_axis`` (default ``"Y"``) state what the
     file does not; for USD they come from the stage and, if given, override it.
+
+    Raises:
+        InputError: anything wrong with the file, always naming it: besides the readers'
+            own errors, an invalid skeleton or frame rate, a NumPy warning (``invalid value
+            in divide``, a non-converging SVD) and any non-finite or absurd number
+            (beyond ``MAX_ABS_VALUE``) in the motion read.
     """
-    import dataclasses
+    import warnings
+
+    import numpy as np
+
+    from usdmotion.errors import TopologyError
 
     path = Path(path)
+    try:
+        with warnings.catch_warnings(), np.errstate(all="warn"):
+            warnings.simplefilter("error", RuntimeWarning)  # NumPy's: the input is numerically broken
+            motion = _read(path, root_offset, units, up_axis, lenient, ignore_joint_positions)
+    except InputError:
+        raise
+    except (TopologyError, ValueError, RuntimeWarning, FloatingPointError, np.linalg.LinAlgError) as exc:
+        text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        if isinstance(exc, (RuntimeWarning, FloatingPointError, np.linalg.LinAlgError)):
+            text = f"invalid numbers in the motion ({text})"
+        raise InputError(path, text) from None
+    check_magnitudes(motion, path)
+    return motion
+
+
+def check_magnitudes(motion: Motion, path: str | os.PathLike | None) -> None:
+    """Refuse a motion holding NaN, ±inf or any value beyond ``MAX_ABS_VALUE``.
+
+    Checks offsets, root and joint translations and rotations with ``min``/``max`` only
+    (no temporary arrays of the motion's size).
+
+    Raises:
+        InputError: names ``path``, the array and (for per-frame data) the first bad frame.
+    """
+    import numpy as np
+
+    from usdmotion.constants import MAX_ABS_VALUE
+
+    arrays = {"joint offsets": motion.offsets, "root translation": motion.root_translation,
+              "joint translations": motion.joint_translations, "rotations": motion.rotations}
+    for name, a in arrays.items():
+        if a is None or a.size == 0 or -MAX_ABS_VALUE <= a.min() <= a.max() <= MAX_ABS_VALUE:
+            continue
+        bad = np.argwhere(~(np.abs(a) <= MAX_ABS_VALUE))[0]
+        where = "" if name == "joint offsets" else f" at frame {int(bad[0])}"
+        raise InputError(path, f"{name}{where}: {a[tuple(bad)]!r} is not a finite number within "
+                               f"±{MAX_ABS_VALUE:g}")
+
+
+def _read(path: Path, root_offset: str, units, up_axis, lenient: bool, ignore_joint_positions: bool) -> Motion:
+    import dataclasses
+
     kind = _kind(path)
     if kind == "bvh":
         from usdmotion.io.bvh import read_bvh

@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from usdmotion.constants import MAX_FRAMES, METERS_PER_UNIT
+from usdmotion.constants import MAX_ABS_VALUE, MAX_FRAMES, METERS_PER_UNIT
 from usdmotion.errors import BvhParseError, UsdMotionWarning
 from usdmotion.io.atomic import atomic_output
 from usdmotion.io.bvh_header import BvhHeader, frame_rate, header_arrays, parse_header
@@ -177,12 +177,11 @@ def parse_bvh(text: str | bytes, path: str | os.PathLike | None = None, lenient:
                                 header.frames_line)
         warnings.warn(f"{path}:{header.frames_line}: {message}; keeping {n_rows}", UsdMotionWarning,
                       stacklevel=2)
-    bad = ~np.isfinite(values)
-    if bad.any():
-        row, col = (int(i) for i in np.argwhere(bad)[0])
+    if values.size and not -MAX_ABS_VALUE <= values.min() <= values.max() <= MAX_ABS_VALUE:  # NaN propagates
+        row, col = (int(i) for i in np.argwhere(~(np.abs(values) <= MAX_ABS_VALUE))[0])
         line = line_of_row(data, row, header.data_line)
-        raise BvhParseError(path, f"non-finite value ({values[row, col]}) in channel {col + 1} of the motion row",
-                            line)
+        what = "non-finite value" if not np.isfinite(values[row, col]) else f"value beyond ±{MAX_ABS_VALUE:g}"
+        raise BvhParseError(path, f"{what} ({values[row, col]}) in channel {col + 1} of the motion row", line)
     parents, offsets = header_arrays(header)
     values.setflags(write=False)
     return BvhData(

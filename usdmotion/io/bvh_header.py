@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from usdmotion.constants import MAX_JOINT_DEPTH
+from usdmotion.constants import MAX_ABS_VALUE, MAX_FPS, MAX_JOINT_DEPTH, MIN_FPS
 from usdmotion.errors import BvhParseError
 from usdmotion.motion import CHANNEL_NAMES
 
@@ -102,6 +102,8 @@ def _parse_float(cur: _Cursor, tok: Token, what: str) -> float:
         raise cur.error(tok, f"{what}: {tok.text!r} is not a number") from None
     if not math.isfinite(value):
         raise cur.error(tok, f"{what}: {tok.text!r} is not a finite number")
+    if abs(value) > MAX_ABS_VALUE:
+        raise cur.error(tok, f"{what}: {tok.text} is beyond ±{MAX_ABS_VALUE:g}")
     return value
 
 
@@ -293,6 +295,9 @@ def _parse_motion_header(text: str, start: int, header: BvhHeader, path: str | N
         raise BvhParseError(path, f"Frame Time: {time_text!r} is not a number", time_line) from None
     if not (math.isfinite(frame_time) and frame_time > 0):
         raise BvhParseError(path, f"Frame Time: {time_text} must be a positive number of seconds", time_line)
+    if not 1.0 / MAX_FPS <= frame_time <= 1.0 / MIN_FPS:
+        raise BvhParseError(path, f"Frame Time: {time_text} s is outside {1 / MAX_FPS:g}..{1 / MIN_FPS:g} s "
+                                  "(one frame a microsecond to one an hour)", time_line)
     header.n_frames = n_frames
     header.frame_time = frame_time
     header.frame_time_text = time_text

@@ -155,6 +155,7 @@ def write_usd(motion: Motion, path: str | os.PathLike, name: str | None = None,
     ext = path.suffix.lower()
     if ext not in USD_EXTENSIONS:
         raise OutputError(f"{path}: unknown USD extension {ext!r} (use {', '.join(USD_EXTENSIONS)})")
+    _check_float32(motion, path)
     root_path = "/" + _stage_name(path, name)
     with atomic_output(path) as tmp:
         layer_path = tmp
@@ -176,6 +177,16 @@ def write_usd(motion: Motion, path: str | os.PathLike, name: str | None = None,
             if scratch is not None:
                 shutil.rmtree(scratch, ignore_errors=True)
     return path
+
+
+def _check_float32(motion: Motion, path: Path) -> None:
+    """Refuse translations that USD's float32 samples cannot hold (they would become inf)."""
+    limit = float(np.finfo(np.float32).max)
+    for name, a in (("joint offsets", motion.offsets), ("root translation", motion.root_translation),
+                    ("joint translations", motion.joint_translations)):
+        if a is not None and a.size and not -limit <= a.min() <= a.max() <= limit:
+            raise OutputError(f"{path}: {name} hold values beyond USD's float32 range (±{limit:.3g}) or NaN; "
+                              "nothing written")
 
 
 def validate_stage(stage) -> list[str]:
