@@ -53,7 +53,13 @@ def _arrow_parse(buf: bytes, n_channels: int) -> np.ndarray | None:
         return None
     out = np.empty((table.num_rows, n_channels), dtype=np.float64)
     for k, column in enumerate(table.columns):
-        out[:, k] = column.to_numpy()
+        row = 0
+        for chunk in column.chunks:  # the float64 buffers as they are: Arrow's to_numpy imports pandas,
+            if chunk.null_count:     # and a Ctrl-C during that import is swallowed (issue 16, item 7)
+                return None
+            data = np.frombuffer(chunk.buffers()[1], dtype=np.float64, count=len(chunk) + chunk.offset)
+            out[row:row + len(chunk), k] = data[chunk.offset:]
+            row += len(chunk)
     return out
 
 
