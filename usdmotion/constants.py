@@ -31,6 +31,11 @@ MAX_FRAMES = 100_000_000
 #: fingers and spline tails/ropes add tens. 1,000 levels keeps paths under ~64 kB.
 MAX_JOINT_DEPTH = 1_000
 
+#: Most joints accepted in one skeleton (end sites included). Film and game rigs with
+#: faces and fingers have a few hundred to ~2,000; with MAX_JOINT_DEPTH this bounds the
+#: UsdSkel joint paths to tens of megabytes.
+MAX_JOINTS = 10_000
+
 #: Largest magnitude of any number read from a file (positions in file units, angles in
 #: degrees). Beyond it no digit survives USD's float32 samples (max 3.4e38) or a sum in
 #: forward kinematics; a kilometre in micrometres is 1e9.

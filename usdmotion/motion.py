@@ -13,7 +13,7 @@ from typing import Literal
 
 import numpy as np
 
-from usdmotion.constants import MAX_FPS, MAX_JOINT_DEPTH, MIN_FPS, UP_AXES
+from usdmotion.constants import MAX_FPS, MAX_JOINT_DEPTH, MAX_JOINTS, MIN_FPS, UP_AXES
 from usdmotion.errors import TopologyError
 
 RootOffset = Literal["add", "replace"]
@@ -35,6 +35,8 @@ def validate_topology(parents: np.ndarray) -> tuple[bool, str]:
         return False, f"parent indices must be integers, got {parents.dtype}"
     if parents[0] != -1:
         return False, f"joint 0 must be the root (parent -1), has parent {parents[0]}"
+    if parents.size > MAX_JOINTS:
+        return False, f"{parents.size} joints; at most {MAX_JOINTS} are supported (far more than any real rig)"
     rest = parents[1:]
     if np.any(rest < 0):
         j = int(np.flatnonzero(rest < 0)[0]) + 1
