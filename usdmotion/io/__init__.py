@@ -36,7 +36,8 @@ def read_motion(path: str | os.PathLike, root_offset: str = "auto", units: str |
         InputError: anything wrong with the file, always naming it: besides the readers'
             own errors, an invalid skeleton or frame rate, a NumPy warning (``invalid value
             in divide``, a non-converging SVD) and any non-finite or absurd number
-            (beyond ``MAX_ABS_VALUE``) in the motion read.
+            (beyond ``MAX_ABS_VALUE``) in the motion read, and an ``IndexError``,
+            ``KeyError`` or ``TypeError`` of a reader tripping over inconsistent content.
     """
     import warnings
 
@@ -51,10 +52,13 @@ def read_motion(path: str | os.PathLike, root_offset: str = "auto", units: str |
             motion = _read(path, root_offset, units, up_axis, lenient, ignore_joint_positions)
     except InputError:
         raise
-    except (TopologyError, ValueError, RuntimeWarning, FloatingPointError, np.linalg.LinAlgError) as exc:
+    except (TopologyError, ValueError, RuntimeWarning, FloatingPointError, np.linalg.LinAlgError,
+            IndexError, KeyError, TypeError) as exc:
         text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         if isinstance(exc, (RuntimeWarning, FloatingPointError, np.linalg.LinAlgError)):
             text = f"invalid numbers in the motion ({text})"
+        elif isinstance(exc, (IndexError, KeyError, TypeError)):  # a reader tripped over the content
+            text = f"inconsistent data the reader cannot use ({type(exc).__name__}: {text})"
         raise InputError(path, text) from None
     check_magnitudes(motion, path)
     return motion
