@@ -175,6 +175,10 @@ class Motion:
             channels = tuple(tuple(str(c) for c in cs) for cs in self.channels)
             if len(channels) != n_joints:
                 raise ValueError(f"channels lists {len(channels)} joints, the skeleton has {n_joints}")
+            for j, cs in enumerate(channels):  # a layout no BVH reader could read back is not kept
+                if len(set(cs)) != len(cs) or not set(cs) <= set(CHANNEL_NAMES):
+                    raise ValueError(f"channels of joint {names[j]!r}: {' '.join(cs)!r} is not a BVH channel layout "
+                                     f"(distinct names among {', '.join(CHANNEL_NAMES)})")
             set_(self, "channels", channels)
         if self.source_channels is not None:
             sc = np.array(self.source_channels, dtype=np.float64)

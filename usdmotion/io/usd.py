@@ -213,7 +213,7 @@ def _open_stage(path: Path):
     try:
         stage = Usd.Stage.Open(str(path))
     except Tf.ErrorException as exc:
-        line, message = usd_error_message(str(exc))
+        line, message = usd_error_message(exc)
         raise UsdReadError(path, f"cannot open as USD: {message}", line) from None
     if stage is None:
         raise UsdReadError(path, "cannot open as USD")

@@ -36,12 +36,23 @@ def _clean(text: str) -> str:
     return " ".join(_NAMESPACE.sub("", text).split())
 
 
-def usd_error_message(text: str) -> tuple[int | None, str]:
-    """``(usda_line or None, message)`` of a ``Tf.ErrorException``'s text.
+def exception_text(exc: BaseException) -> str:
+    """``str(exc)``, even when USD quoted non-UTF-8 bytes of the file in its message (the
+    binding's own ``str()`` then fails with ``UnicodeDecodeError``)."""
+    try:
+        return str(exc)
+    except UnicodeDecodeError as failure:
+        raw = failure.object
+        return raw.decode("utf-8", "replace") if isinstance(raw, bytes) else type(exc).__name__
+
+
+def usd_error_message(error: str | BaseException) -> tuple[int | None, str]:
+    """``(usda_line or None, message)`` of a ``Tf.ErrorException`` (or its text).
 
     The most specific record wins: a parse error ``file:line:col: …`` over the generic
     ``Failed to open layer @file@`` that follows it.
     """
+    text = error if isinstance(error, str) else exception_text(error)
     records = [r.strip() for r in _RECORD.findall(text)] or [text.strip()]
     for record in records:
         where = _WHERE.match(record)
@@ -70,7 +81,14 @@ def usd_diagnostics(path: str | os.PathLike) -> Iterator[None]:
         try:
             yield
         except Tf.ErrorException as exc:
-            line, message = usd_error_message(str(exc))
+            line, message = usd_error_message(exc)
+            raise UsdReadError(path, f"cannot read as USD: {message}", line) from None
+        except UnicodeDecodeError as exc:
+            # USD quotes the offending bytes in its error; a non-UTF-8 byte there makes the
+            # Python binding fail to decode the message itself
+            if not (isinstance(exc.object, bytes) and b"Error in" in exc.object):
+                raise
+            line, message = usd_error_message(exc.object.decode("utf-8", "replace"))
             raise UsdReadError(path, f"cannot read as USD: {message}", line) from None
         finally:
             texts = [_warning_text(d) for d in list(trap.GetWarnings()) + list(trap.GetErrors())]

@@ -128,17 +128,36 @@ def _fit_distance(points: np.ndarray, back: np.ndarray, up_hint: np.ndarray, yfo
 
 def usd_camera_track(spec: str, times: np.ndarray) -> CameraTrack:
     """Poses of the camera in a USD file at ``times (N,)`` seconds (stage time = seconds ×
-    timeCodesPerSecond), converted to render space (metres, Y up)."""
-    from pxr import Gf, Usd, UsdGeom
+    timeCodesPerSecond), converted to render space (metres, Y up).
 
+    Raises:
+        InputError: naming the camera file: not USD, no camera, or a camera whose
+            transform, field of view or clipping range is unusable (USD's own
+            diagnostics become usdmotion warnings).
+    """
     from usdmotion.io.usd_diagnostics import usd_diagnostics
 
     match = _USD_CAMERA.match(spec)
     path, prim_path = Path(match["file"]), match["prim"]
     if not path.is_file():
         raise InputError(path, "no such camera file")
-    with usd_diagnostics(path):
-        stage = Usd.Stage.Open(str(path))
+    with usd_diagnostics(path), np.errstate(all="ignore"):  # a degenerate camera is refused below
+        try:
+            track = _usd_camera_track(path, prim_path, times)
+        except (TypeError, ValueError, IndexError, ZeroDivisionError) as exc:
+            raise InputError(path, f"unusable camera ({type(exc).__name__}: {str(exc).splitlines()[0]})") from None
+    ok = (bool(np.all(np.isfinite(track.poses))) and 0 < track.yfov < math.pi
+          and 0 < track.znear < track.zfar < math.inf)
+    if not ok:
+        raise InputError(path, "the camera's transform, field of view or clipping range is not usable "
+                               f"(fov {math.degrees(track.yfov):.3g} deg, clipping {track.znear:.3g}..{track.zfar:.3g} m)")
+    return track
+
+
+def _usd_camera_track(path: Path, prim_path: str | None, times: np.ndarray) -> CameraTrack:
+    from pxr import Gf, Usd, UsdGeom
+
+    stage = Usd.Stage.Open(str(path))
     if stage is None:
         raise InputError(path, "cannot open as USD")
     if prim_path:
