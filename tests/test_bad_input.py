@@ -357,6 +357,25 @@ def test_8_an_end_site_without_offset_is_accepted_as_a_tip_at_its_joint(tmp_path
     assert np.array_equal(np.delete(motion.offsets, tip, 0), np.delete(reference.offsets, tip, 0))
 
 
+# ------------------------------------------------------------------ docs/errors.md
+
+
+def test_errors_catalogue_lists_every_message_of_the_package():
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("errors_catalogue",
+                                                  HERE.parent / "scripts" / "errors_catalogue.py")
+    catalogue = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(catalogue)
+    doc = (HERE.parent / "docs" / "errors.md").read_text("utf-8")
+    assert doc == catalogue.render(), "docs/errors.md is out of date: run .venv/bin/python scripts/errors_catalogue.py"
+    found = catalogue.messages()
+    assert len(found) > 250
+    for _, _, message in found:  # independent of render(): each message text is in the document
+        longest = max(catalogue._clean(message).split("…"), key=len).strip()
+        assert longest.replace("|", "\\|").replace("`", "'") in doc, message
+
+
 # ------------------------------------------------------------- fuzz reproducers
 
 

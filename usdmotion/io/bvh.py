@@ -180,8 +180,11 @@ def parse_bvh(text: str | bytes, path: str | os.PathLike | None = None, lenient:
     if values.size and not -MAX_ABS_VALUE <= values.min() <= values.max() <= MAX_ABS_VALUE:  # NaN propagates
         row, col = (int(i) for i in np.argwhere(~(np.abs(values) <= MAX_ABS_VALUE))[0])
         line = line_of_row(data, row, header.data_line)
-        what = "non-finite value" if not np.isfinite(values[row, col]) else f"value beyond ±{MAX_ABS_VALUE:g}"
-        raise BvhParseError(path, f"{what} ({values[row, col]}) in channel {col + 1} of the motion row", line)
+        if not np.isfinite(values[row, col]):
+            raise BvhParseError(path, f"non-finite value ({values[row, col]}) in channel {col + 1} of the motion row",
+                                line)
+        raise BvhParseError(path, f"value beyond ±{MAX_ABS_VALUE:g} ({values[row, col]}) in channel {col + 1} of the "
+                                  "motion row", line)
     parents, offsets = header_arrays(header)
     values.setflags(write=False)
     return BvhData(
