@@ -249,8 +249,16 @@ def rotations_from_channels(values: np.ndarray, channels: tuple[tuple[str, ...],
                 halves.append(plane)
             rotations[frames, joints] = half_angles_to_quat(*halves, order)
 
-        over_slices(convert, n_frames, min_items=max(1, 40_000 // len(joints)))
+        for block in range(0, n_frames, _BLOCK_FRAMES):  # bounded temporaries, whatever the length
+            size = min(_BLOCK_FRAMES, n_frames - block)
+            over_slices(lambda part, block=block, convert=convert: convert(slice(block + part.start,
+                                                                                 block + part.stop)),
+                        size, min_items=max(1, 40_000 // len(joints)))
     return rotations
+
+
+#: Frames converted at a time (the Euler → quaternion temporaries scale with it, not the take).
+_BLOCK_FRAMES = 32_768
 
 
 def _positions(values: np.ndarray, columns: dict[str, int], base: np.ndarray, add: bool) -> np.ndarray:

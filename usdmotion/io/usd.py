@@ -31,7 +31,7 @@ import numpy as np
 from usdmotion.errors import OutputError, UsdMotionWarning, UsdReadError
 from usdmotion.io.atomic import atomic_output
 from usdmotion.io.usd_diagnostics import usd_error_message
-from usdmotion.kinematics import compose_transforms, local_translations, rest_pose
+from usdmotion.kinematics import compose_transforms, rest_pose
 from usdmotion.motion import Motion
 from usdmotion.rotations import matrix_to_quat, quat_mul, quat_rotate, wxyz_to_xyzw
 
@@ -124,18 +124,35 @@ def define_skeleton(stage, motion: Motion, root_path: str):
     binding = UsdSkel.BindingAPI.Apply(skel.GetPrim())
     binding.CreateAnimationSourceRel().SetTargets([anim.GetPath()])
 
-    translations = local_translations(motion).astype(np.float32)
-    rotations = wxyz_to_xyzw(motion.rotations).astype(np.float32)
     layer = stage.GetRootLayer()
     t_path, r_path = translations_attr.GetPath(), rotations_attr.GetPath()
     if motion.n_frames == 0:
         translations_attr.Set(Vt.Vec3fArray.FromNumpy(motion.offsets.astype(np.float32)))
         rotations_attr.Set(Vt.QuatfArray.FromNumpy(np.tile(np.float32([0, 0, 0, 1]), (motion.n_joints, 1))))
     with Sdf.ChangeBlock():
-        for f in range(motion.n_frames):  # one time sample per frame: the USD API's unit
-            layer.SetTimeSample(t_path, float(f), Vt.Vec3fArray.FromNumpy(translations[f]))
-            layer.SetTimeSample(r_path, float(f), Vt.QuatfArray.FromNumpy(rotations[f]))
+        for start in range(0, motion.n_frames, _CHUNK_FRAMES):  # float32 copies of one chunk at a time
+            translations, rotations = _float32_samples(motion, start, start + _CHUNK_FRAMES)
+            for k in range(translations.shape[0]):  # one time sample per frame: the USD API's unit
+                layer.SetTimeSample(t_path, float(start + k), Vt.Vec3fArray.FromNumpy(translations[k]))
+                layer.SetTimeSample(r_path, float(start + k), Vt.QuatfArray.FromNumpy(rotations[k]))
     return skel
+
+
+#: Frames converted to float32 at a time while writing (bounds the temporary copies).
+_CHUNK_FRAMES = 4096
+
+
+def _float32_samples(motion: Motion, start: int, stop: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(translations (n, J, 3), rotations xyzw (n, J, 4))`` float32 of frames ``start:stop``."""
+    stop = min(stop, motion.n_frames)
+    if motion.joint_translations is not None:
+        translations = motion.joint_translations[start:stop].astype(np.float32)
+    else:
+        translations = np.empty((stop - start, motion.n_joints, 3), np.float32)
+        translations[:] = motion.offsets.astype(np.float32)
+    translations[:, 0] = motion.root_translation[start:stop]
+    rotations = wxyz_to_xyzw(motion.rotations[start:stop]).astype(np.float32)
+    return translations, rotations
 
 
 def write_usd(motion: Motion, path: str | os.PathLike, name: str | None = None,
