@@ -36,6 +36,7 @@ INTERESTING_NUMBERS = ("0", "-0", "1e39", "-1e39", "1e308", "1e400", "nan", "NaN
 INTERESTING_TOKENS = ("{", "}", "[", "]", "ROOT", "JOINT", "End Site", "OFFSET", "CHANNELS", "MOTION", "Frames:",
                       "Frame Time:", '"', "\x00", "\xff", "\u00e9", "def", "over", "(", ")", "=", "@", "</a>",
                       "null", "true", "{}", "[]", ":", ",", "\n", "\t")
+_NUMPY_WARNING = re.compile(r"encountered in|SVD did not converge|Mean of empty slice|Degrees of freedom")
 _NUMBER = re.compile(rb"-?\d+(?:\.\d*)?(?:[eE][-+]?\d+)?")
 
 
@@ -279,6 +280,9 @@ def classify(code: int, stderr: str, args: list[str], out_dir: Path) -> Outcome:
     left = sorted(p.name for p in out_dir.iterdir())
     if "Traceback" in stderr or foreign:
         return Outcome("defect", code, stderr, f"foreign output: {(foreign or ['Traceback'])[0][:120]}")
+    leaked = [line for line in lines if _NUMPY_WARNING.search(line)]
+    if leaked:
+        return Outcome("defect", code, stderr, f"NumPy warning leaked: {leaked[0][:120]}")
     if code == 2:
         errors = [line for line in lines if line.startswith("usdmotion: error: ")]
         if len(errors) != 1:
