@@ -122,6 +122,9 @@ def check_options(options: RenderOptions) -> None:
         raise UsdMotionError(f"--quality (H.264 CRF) must be in 0..51, got {options.quality}")
     if not 4 <= options.body_resolution <= 1024:
         raise UsdMotionError(f"body resolution must be in 4..1024, got {options.body_resolution}")
+    from usdmotion.render.camera import check_camera
+
+    check_camera(options.camera)
     for name, value in (("start", options.start), ("stop", options.end)):
         if value is not None and value < 0:
             raise UsdMotionError(f"--frames: {name} {value} is negative; frames count from 0 "

@@ -44,6 +44,19 @@ def load_presets(path: Path | None = None) -> dict[str, dict]:
     return {str(k): dict(v) for k, v in (data or {}).items()}
 
 
+def check_camera(spec: str) -> None:
+    """Refuse an unknown preset or a missing camera file before any work."""
+    if is_usd_camera(spec):
+        path = Path(_USD_CAMERA.match(spec)["file"])
+        if not path.is_file():
+            raise InputError(path, "no such camera file")
+        return
+    presets = load_presets()
+    if spec not in presets:
+        raise UsdMotionError(f"unknown camera preset {spec!r} (use one of: {', '.join(sorted(presets))}, "
+                             "or a USD file with a camera, e.g. cam.usda:/World/Camera)")
+
+
 def is_usd_camera(spec: str) -> bool:
     """True if ``spec`` names a USD file (``cam.usda`` or ``cam.usda:/World/Camera``)."""
     return bool(_USD_CAMERA.match(spec))
