@@ -230,13 +230,17 @@ def _captured_fds() -> tuple[Path, Path]:
 
     sys.stdout.flush()
     sys.stderr.flush()
+    streams = sys.stdout, sys.stderr  # pytest replaces them by objects that are not fds 1 and 2
     try:
         os.dup2(files[0].fileno(), 1)
         os.dup2(files[1].fileno(), 2)
+        sys.stdout = open(1, "w", buffering=1, closefd=False)  # noqa: SIM115
+        sys.stderr = open(2, "w", buffering=1, closefd=False)  # noqa: SIM115
         yield files
     finally:
         sys.stdout.flush()
         sys.stderr.flush()
+        sys.stdout, sys.stderr = streams
         os.dup2(saved[0], 1)
         os.dup2(saved[1], 2)
         for fd in saved:

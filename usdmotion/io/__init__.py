@@ -34,8 +34,8 @@ def read_motion(path: str | os.PathLike, root_offset: str = "auto", units: str |
 
     Raises:
         InputError: anything wrong with the file, always naming it: besides the readers'
-            own errors, an invalid skeleton or frame rate, a NumPy warning (``invalid value
-            in divide``, a non-converging SVD) and any non-finite or absurd number
+            own errors, an invalid skeleton or frame rate, a NumPy warning or error
+            (``invalid value in divide``, a non-converging SVD: the numbers are broken) and any non-finite or absurd number
             (beyond ``MAX_ABS_VALUE``) in the motion read, and an ``IndexError``,
             ``KeyError`` or ``TypeError`` of a reader tripping over inconsistent content.
     """
@@ -56,7 +56,7 @@ def read_motion(path: str | os.PathLike, root_offset: str = "auto", units: str |
             IndexError, KeyError, TypeError) as exc:
         text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         if isinstance(exc, (RuntimeWarning, FloatingPointError, np.linalg.LinAlgError)):
-            text = f"invalid numbers in the motion ({text})"
+            text = "invalid numbers in the motion: a rotation or transform is NaN, infinite or degenerate"
         elif isinstance(exc, (IndexError, KeyError, TypeError)):  # a reader tripped over the content
             text = f"inconsistent data the reader cannot use ({type(exc).__name__}: {text})"
         raise InputError(path, text) from None
