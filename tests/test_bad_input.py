@@ -26,7 +26,8 @@ from usdmotion.cli import main
 from usdmotion.constants import MAX_ABS_VALUE, MAX_JOINT_DEPTH, MAX_JOINTS
 from usdmotion.errors import InputError, OutputError
 from usdmotion.io import read_motion, write_motion
-from usdmotion.io.bvh import read_bvh, write_bvh
+from usdmotion.io.bvh import read_bvh
+from usdmotion.io.bvh_write import write_bvh
 
 HERE = Path(__file__).parent
 WALK = Path(__file__).resolve().parents[1] / "usdmotion" / "data" / "cmu_12_01_walk.bvh"
@@ -321,7 +322,7 @@ def test_7_a_signal_during_the_usd_write_removes_the_temporary_file(big_bvh, tmp
 
 
 def test_8_nan_infinite_and_huge_weights_in_a_joint_map_are_refused(tmp_path):
-    from usdmotion.ops.jointmap import JointMapError, load_joint_map
+    from usdmotion.ops.retarget.jointmap import JointMapError, load_joint_map
 
     for text, fragment in (('{"auto": true, "weights": {"Hips": NaN}}', "NaN"),
                            ('{"auto": true, "weights": {"Hips": Infinity}}', "Infinity"),

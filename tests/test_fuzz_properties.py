@@ -91,7 +91,7 @@ def test_mutated_motion_files_are_read_or_refused_cleanly(seeds, scratch, kind, 
 
 
 def test_mutated_joint_maps_are_loaded_or_refused_cleanly(seeds, scratch):
-    from usdmotion.ops.jointmap import load_joint_map
+    from usdmotion.ops.retarget.jointmap import load_joint_map
 
     seed = seeds["jointmap"].read_bytes()
 
@@ -111,7 +111,7 @@ def test_mutated_joint_maps_are_loaded_or_refused_cleanly(seeds, scratch):
 
 
 def test_mutated_segment_labels_are_loaded_or_refused_cleanly(seeds, scratch):
-    from usdmotion.ops.segment_eval import load_labels
+    from usdmotion.ops.segment.evaluate import load_labels
 
     seed = seeds["segments"].read_bytes()
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from usdmotion.channels import override_units_axis
 from usdmotion.errors import InputError, OutputError
 from usdmotion.motion import Motion
 
@@ -26,18 +27,22 @@ def _kind(path: Path) -> str | None:
 
 
 def read_motion(path: str | os.PathLike, root_offset: str = "auto", units: str | float | None = None,
-                up_axis: str | None = None, lenient: bool = False, ignore_joint_positions: bool = False) -> Motion:
+                up_axis: str | None = None, lenient: bool = False, ignore_joint_positions: bool = False,
+                skeleton: str | None = None) -> Motion:
     """Read a BVH or UsdSkel file.
 
     For BVH, ``units`` (default ``"cm"``) and ``up_axis`` (default ``"Y"``) state what the
     file does not; for USD they come from the stage and, if given, override it.
+    ``skeleton`` names the ASF skeleton file of ``.amc`` input or the Skeleton prim path
+    of a USD stage with several skeletons; inputs that cannot take it raise ``InputError``.
 
     Raises:
         InputError: anything wrong with the file, always naming it: besides the readers'
             own errors, an invalid skeleton or frame rate, a NumPy warning or error
-            (``invalid value in divide``, a non-converging SVD: the numbers are broken) and any non-finite or absurd number
-            (beyond ``MAX_ABS_VALUE``) in the motion read, and an ``IndexError``,
-            ``KeyError`` or ``TypeError`` of a reader tripping over inconsistent content.
+            (``invalid value in divide``, a non-converging SVD: the numbers are broken),
+            any non-finite or absurd number (beyond ``MAX_ABS_VALUE``) in the motion read,
+            and an ``IndexError``, ``KeyError`` or ``TypeError`` of a reader tripping over
+            inconsistent content. USD's C++ diagnostics become usdmotion warnings.
     """
     import warnings
 
@@ -49,7 +54,7 @@ def read_motion(path: str | os.PathLike, root_offset: str = "auto", units: str |
     try:
         with warnings.catch_warnings(), np.errstate(all="warn"):
             warnings.simplefilter("error", RuntimeWarning)  # NumPy's: the input is numerically broken
-            motion = _read(path, root_offset, units, up_axis, lenient, ignore_joint_positions)
+            motion = _read(path, root_offset, units, up_axis, lenient, ignore_joint_positions, skeleton)
     except InputError:
         raise
     except (TopologyError, ValueError, RuntimeWarning, FloatingPointError, np.linalg.LinAlgError,
@@ -88,28 +93,25 @@ def check_magnitudes(motion: Motion, path: str | os.PathLike | None) -> None:
                                f"±{MAX_ABS_VALUE:g}")
 
 
-def _read(path: Path, root_offset: str, units, up_axis, lenient: bool, ignore_joint_positions: bool) -> Motion:
-    import dataclasses
-
+def _read(path: Path, root_offset: str, units, up_axis, lenient: bool, ignore_joint_positions: bool,
+          skeleton: str | None) -> Motion:
     kind = _kind(path)
+    if skeleton is not None:
+        if kind == "bvh":
+            raise InputError(path, "--skeleton does not apply to BVH input (a BVH file holds one skeleton)")
+        if kind == "usd":
+            raise InputError(path, "--skeleton: choosing a Skeleton prim of a USD stage is not supported yet")
     if kind == "bvh":
         from usdmotion.io.bvh import read_bvh
 
         return read_bvh(path, root_offset=root_offset, units="cm" if units is None else units,
                         up_axis=up_axis or "Y", lenient=lenient, ignore_joint_positions=ignore_joint_positions)
     if kind == "usd":
-        from usdmotion.io.bvh import resolve_units
         from usdmotion.io.usd import read_usd
         from usdmotion.io.usd_diagnostics import usd_diagnostics
 
         with usd_diagnostics(path):
-            motion = read_usd(path)
-        changes = {}
-        if units is not None:
-            changes["meters_per_unit"] = resolve_units(units)
-        if up_axis is not None:
-            changes["up_axis"] = up_axis
-        return dataclasses.replace(motion, **changes) if changes else motion
+            return override_units_axis(read_usd(path), units, up_axis)
     raise InputError(path, f"unknown input format {path.suffix!r} (use .bvh, {', '.join(USD_EXTENSIONS)})")
 
 
@@ -118,7 +120,7 @@ def write_motion(motion: Motion, path: str | os.PathLike, **options) -> Path:
     path = Path(path)
     kind = _kind(path)
     if kind == "bvh":
-        from usdmotion.io.bvh import write_bvh
+        from usdmotion.io.bvh_write import write_bvh
 
         return write_bvh(motion, path, **{k: v for k, v in options.items() if k in ("decimals",)})
     if kind == "usd":

@@ -53,14 +53,14 @@ def _arrow_parse(buf: bytes, n_channels: int) -> np.ndarray | None:
         return None
     out = np.empty((table.num_rows, n_channels), dtype=np.float64)
     for k, column in enumerate(table.columns):
-        row = 0
-        for chunk in column.chunks:  # the float64 buffers as they are: Arrow's to_numpy imports pandas,
-            if chunk.null_count:     # and a Ctrl-C during that import is swallowed (issue 16, item 7)
-                return None
-            data = np.frombuffer(chunk.buffers()[1], dtype=np.float64, count=len(chunk) + chunk.offset)
-            out[row:row + len(chunk), k] = data[chunk.offset:]
-            row += len(chunk)
+        out[:, k] = np.concatenate([_float64_values(chunk) for chunk in column.chunks]) if column.chunks else []
     return out
+
+
+def _float64_values(chunk) -> np.ndarray:
+    """The values of a null-free float64 pyarrow array, read from its data buffer:
+    ``Array.to_numpy`` would import pandas (0.16 s of start-up) for nothing."""
+    return np.frombuffer(chunk.buffers()[1], dtype=np.float64, count=len(chunk), offset=chunk.offset * 8)
 
 
 def normalize_whitespace(buf: bytes) -> bytes:
