@@ -59,6 +59,7 @@ ADVICE = [
 AREAS = [
     ("io/bvh", "Reading and writing BVH", "Fix the BVH at the line shown."),
     ("io/usd", "Reading and writing USD", "Check the stage with usdview or `usdchecker`."),
+    ("usd_diagnostics", "Reading and writing USD", "Check the stage with usdview or `usdchecker`."),
     ("io", "Files in general", "Check the path and the file's format."),
     ("motion", "Motion data model (library use)", "Library use: pass arrays of the stated shapes (from files these "
                                                   "are reported as FILE: errors)."),

@@ -239,7 +239,7 @@ def test_4_usd_skeleton_warnings_become_one_usdmotion_line_each(tmp_path, capfd)
 
 
 def test_4_usd_error_message_prefers_the_parse_record():
-    from usdmotion.io.usd_diagnostics import usd_error_message
+    from usdmotion.usd_diagnostics import usd_error_message
 
     text = ("\n\tError in 'pxrInternal_v0_26_11__pxrReserved__::Sdf_TextFileFormatParser::_RaiseErrorPEGTL' at "
             "line 48 in file /opt/USD/pxr/usd/sdf/textParserHelpers.h : '/x/a.usda:12:3: parse error matching "

@@ -108,7 +108,7 @@ def _read(path: Path, root_offset: str, units, up_axis, lenient: bool, ignore_jo
                         up_axis=up_axis or "Y", lenient=lenient, ignore_joint_positions=ignore_joint_positions)
     if kind == "usd":
         from usdmotion.io.usd import read_usd
-        from usdmotion.io.usd_diagnostics import usd_diagnostics
+        from usdmotion.usd_diagnostics import usd_diagnostics
 
         with usd_diagnostics(path):
             return override_units_axis(read_usd(path), units, up_axis)

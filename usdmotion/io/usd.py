@@ -30,7 +30,7 @@ import numpy as np
 
 from usdmotion.errors import OutputError, UsdMotionWarning, UsdReadError
 from usdmotion.io.atomic import atomic_output
-from usdmotion.io.usd_diagnostics import usd_error_message
+from usdmotion.usd_diagnostics import usd_error_message
 from usdmotion.kinematics import compose_transforms, rest_pose
 from usdmotion.motion import Motion
 from usdmotion.rotations import matrix_to_quat, quat_mul, quat_rotate, wxyz_to_xyzw

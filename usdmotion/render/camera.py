@@ -148,7 +148,7 @@ def usd_camera_track(spec: str, times: np.ndarray) -> CameraTrack:
             transform, field of view or clipping range is unusable (USD's own
             diagnostics become usdmotion warnings).
     """
-    from usdmotion.io.usd_diagnostics import usd_diagnostics
+    from usdmotion.usd_diagnostics import usd_diagnostics
 
     match = _USD_CAMERA.match(spec)
     path, prim_path = Path(match["file"]), match["prim"]
