@@ -173,7 +173,7 @@ def render() -> str:
              "| Message | What to do |",
              "|---|---|",
              FIXED.rstrip()]
-    for _, title, _ in AREAS:
+    for title in dict.fromkeys(title for _, title, _ in AREAS):
         if title in sections:
             parts += ["", f"## {title}", "", "| Message | What to do |", "|---|---|", *sections[title]]
     return "\n".join(parts) + "\n"
