@@ -95,9 +95,8 @@ def campaign(minutes: float, seed: int, save: bool) -> dict:
                 defects.append({"entry_point": name, "reason": outcome.reason, "args": args})
                 print(f"DEFECT {name}: {outcome.reason}", flush=True)
                 if save:
-                    stored = [a.replace(str(src), "{src}").replace(str(out_dir / "out"), "{out}")
-                              .replace(str(seeds["walk"]), str(Path("usdmotion/data/cmu_12_01_walk.bvh")))
-                              for a in args]
+                    stored = [a.replace(str(seeds["walk"]), "{walk}").replace(str(src), "{src}")
+                              .replace(str(out_dir / "out"), "{out}") for a in args]
                     _save(name, data, suffix, stored, outcome.reason, seen)
             shutil.rmtree(case_dir, ignore_errors=True)
             n += 1

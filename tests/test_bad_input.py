@@ -394,6 +394,10 @@ def test_fuzz_reproducers_stay_fixed(case, tmp_path):
     src = FUZZ / case["file"]
     out_dir = tmp_path / "out"
     out_dir.mkdir()
-    args = [a.replace("{src}", str(src)).replace("{out}", str(out_dir / "out")) for a in case["args"]]
+    walk = tmp_path / "walk120.bvh"  # the campaign's {walk} seed: the first 120 frames of the CMU walk
+    if any("{walk}" in a for a in case["args"]):
+        write_bvh(read_motion(WALK).sliced(0, 120), walk)
+    args = [a.replace("{walk}", str(walk)).replace("{src}", str(src)).replace("{out}", str(out_dir / "out"))
+            for a in case["args"]]
     outcome = run_case(args, out_dir)
     assert outcome.kind in ("ok", "clean"), f"{outcome.reason}\n{outcome.stderr}"

@@ -45,3 +45,8 @@ MAX_ABS_VALUE = 1e15
 #: megahertz sensor. ``Frame Time: 1e300`` is a typo, not a recording.
 MIN_FPS = 1.0 / 3600.0
 MAX_FPS = 1e6
+
+#: Units accepted (metres per unit): a micrometre to 1,000 km. ``--units 1e-300`` would
+#: scale a body to nothing and its numbers out of float32's range.
+MIN_METERS_PER_UNIT = 1e-6
+MAX_METERS_PER_UNIT = 1e6

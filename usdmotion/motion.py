@@ -13,7 +13,8 @@ from typing import Literal
 
 import numpy as np
 
-from usdmotion.constants import MAX_FPS, MAX_JOINT_DEPTH, MAX_JOINTS, MIN_FPS, UP_AXES
+from usdmotion.constants import (MAX_FPS, MAX_JOINT_DEPTH, MAX_JOINTS, MAX_METERS_PER_UNIT, MIN_FPS,
+                                 MIN_METERS_PER_UNIT, UP_AXES)
 from usdmotion.errors import TopologyError
 
 RootOffset = Literal["add", "replace"]
@@ -191,8 +192,9 @@ class Motion:
             raise ValueError(f"fps must be a number in {MIN_FPS:.3g}..{MAX_FPS:g} (one frame an hour to a "
                              f"megahertz), got {self.fps}")
         set_(self, "fps", float(self.fps))
-        if not (np.isfinite(self.meters_per_unit) and self.meters_per_unit > 0):
-            raise ValueError(f"meters_per_unit must be positive, got {self.meters_per_unit}")
+        if not (MIN_METERS_PER_UNIT <= self.meters_per_unit <= MAX_METERS_PER_UNIT):
+            raise ValueError(f"meters_per_unit must be in {MIN_METERS_PER_UNIT:g}..{MAX_METERS_PER_UNIT:g} "
+                             f"(a micrometre to 1,000 km), got {self.meters_per_unit}")
         set_(self, "meters_per_unit", float(self.meters_per_unit))
         if self.up_axis not in UP_AXES:
             raise ValueError(f"up_axis must be one of {UP_AXES}, got {self.up_axis!r}")
