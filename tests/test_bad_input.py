@@ -223,19 +223,29 @@ def test_4_a_usda_parse_error_names_the_file_and_line_without_cpp_noise(tmp_path
     assert_one_line_error(code, err, f"{path}:8:", "parse error", "</A.xformOp:translate>")
 
 
-def test_4_usd_skeleton_warnings_become_one_usdmotion_line_each(tmp_path, capfd):
+SKELETON = ('#usda 1.0\n(\n  defaultPrim = "R"\n)\ndef SkelRoot "R"\n{\n  def Skeleton "Skeleton"\n  {\n'
+            '    uniform token[] joints = ["A", "A/B"]\n'
+            '    uniform matrix4d[] restTransforms = [( (1,0,0,0),(0,1,0,0),(0,0,1,0),(0,0,0,1) ){rest}]\n'
+            '    uniform matrix4d[] bindTransforms = [( (1,0,0,0),(0,1,0,0),(0,0,1,0),(0,0,0,1) )]\n  }\n}\n')
+
+
+def test_4_a_usd_warning_on_a_readable_stage_becomes_one_usdmotion_warning(tmp_path, capfd):
     path = tmp_path / "skel.usda"
-    path.write_text('#usda 1.0\n(\n  defaultPrim = "R"\n)\ndef SkelRoot "R"\n{\n  def Skeleton "Skeleton"\n  {\n'
-                    '    uniform token[] joints = ["A", "A/B"]\n'
-                    '    uniform matrix4d[] restTransforms = [( (1,0,0,0),(0,1,0,0),(0,0,1,0),(0,0,0,1) )]\n'
-                    '  }\n}\n')
+    path.write_text(SKELETON.replace("{rest}", ", ( (1,0,0,0),(0,1,0,0),(0,0,1,0),(0,1,0,1) )"))
+    code, out, err = cli(capfd, "info", path)
+    assert code == 0, err
+    assert err.strip().splitlines() == [
+        f"usdmotion: warning: {path}: USD: /R/Skeleton: size of 'bindTransforms' attr [1] does not match the "
+        "number of joints in the 'joints' attr [2]."]
+    assert "joints      2" in out
+
+
+def test_4_usd_diagnostics_behind_a_refusal_are_folded_into_its_one_line(tmp_path, capfd):
+    path = tmp_path / "skel.usda"
+    path.write_text(SKELETON.replace("{rest}", ""))  # one rest transform for two joints: unusable
     code, _, err = cli(capfd, "info", path)
-    lines = err.strip().splitlines()
-    assert code == 2 and lines[-1].startswith(f"usdmotion: error: {path}"), err
-    warnings_ = [line for line in lines if line.startswith("usdmotion: warning:")]
-    assert any(f"{path}: USD: /R/Skeleton: size of 'restTransforms'" in w for w in warnings_), err
-    assert all(line.startswith("usdmotion: ") for line in lines), err
-    assert "Warning: in" not in err and ".cpp" not in err and "pxrInternal" not in err
+    line = assert_one_line_error(code, err, path, "USD: /R/Skeleton: size of '", "does not match the number of joints")
+    assert "Warning: in" not in line
 
 
 def test_4_usd_error_message_prefers_the_parse_record():

@@ -21,7 +21,7 @@ import re
 import warnings
 from collections.abc import Iterator
 
-from usdmotion.errors import UsdMotionWarning, UsdReadError
+from usdmotion.errors import InputError, UsdMotionWarning, UsdReadError
 
 #: At most this many distinct USD warnings are shown per file (then a count).
 MAX_WARNINGS = 5
@@ -71,6 +71,10 @@ def _warning_text(diagnostic) -> str:
 def usd_diagnostics(path: str | os.PathLike) -> Iterator[None]:
     """Trap USD diagnostics raised inside the block (reading ``path``).
 
+    When the block succeeds, each distinct diagnostic becomes a warning. When it fails
+    with an :class:`~usdmotion.errors.InputError`, the first diagnostic is folded into
+    that error's one line instead (``…; USD: </prim>: reason``), so the user sees one line.
+
     Raises:
         UsdReadError: a ``Tf.ErrorException`` escaped the block (``path[:usda_line]: message``).
     """
@@ -78,22 +82,40 @@ def usd_diagnostics(path: str | os.PathLike) -> Iterator[None]:
 
     path = os.fspath(path)
     with Tf.DiagnosticTrap() as trap:
+        def trapped() -> list[str]:
+            texts = [_warning_text(d) for d in list(trap.GetWarnings()) + list(trap.GetErrors())]
+            trap.Clear()
+            return list(dict.fromkeys(t for t in texts if t))
+
         try:
             yield
         except Tf.ErrorException as exc:
+            trapped()
             line, message = usd_error_message(exc)
             raise UsdReadError(path, f"cannot read as USD: {message}", line) from None
         except UnicodeDecodeError as exc:
             # USD quotes the offending bytes in its error; a non-UTF-8 byte there makes the
             # Python binding fail to decode the message itself
+            trapped()
             if not (isinstance(exc.object, bytes) and b"Error in" in exc.object):
                 raise
             line, message = usd_error_message(exc.object.decode("utf-8", "replace"))
             raise UsdReadError(path, f"cannot read as USD: {message}", line) from None
-        finally:
-            texts = [_warning_text(d) for d in list(trap.GetWarnings()) + list(trap.GetErrors())]
-            trap.Clear()
-            _reissue(path, texts)
+        except InputError as exc:
+            texts = trapped()
+            if texts:
+                exc.message = f"{exc.message}; USD: {texts[0]}"
+                exc.args = (exc._format(),)
+            raise
+        except Exception:  # the reader tripped over what USD already complained about: say that
+            texts = trapped()
+            if texts:
+                raise UsdReadError(path, f"not a usable UsdSkel stage; USD: {texts[0]}") from None
+            raise
+        except BaseException:
+            trapped()
+            raise
+        _reissue(path, trapped())
 
 
 def _reissue(path: str, texts: list[str]) -> None:
@@ -101,4 +123,5 @@ def _reissue(path: str, texts: list[str]) -> None:
     for text in distinct[:MAX_WARNINGS]:
         warnings.warn(f"{path}: USD: {text}", UsdMotionWarning, stacklevel=4)
     if len(distinct) > MAX_WARNINGS:
-        warnings.warn(f"{path}: USD: {len(distinct) - MAX_WARNINGS} more warnings", UsdMotionWarning, stacklevel=4)
+        warnings.warn(f"{path}: USD: {len(distinct) - MAX_WARNINGS} more warnings", UsdMotionWarning,
+                      stacklevel=4)
