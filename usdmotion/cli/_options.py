@@ -25,13 +25,13 @@ class UpAxisChoice(str, Enum):
     Z = "Z"
 
 
-InputPath = Annotated[Path, typer.Argument(help="Input motion: .bvh, .usd, .usda, .usdc or .usdz.",
+InputPath = Annotated[Path, typer.Argument(help="Input motion: .bvh, .usd, .usda, .usdc, .usdz, .glb or .gltf.",
                                            show_default=False)]
 Units = Annotated[str | None, typer.Option(
     "--units", help="Length unit of a BVH file: cm, m, mm, in, ft, asf (CMU, 1/0.45 in), or metres per "
-                    "unit as a number. Default: cm for BVH; the stage's for USD.", show_default=False)]
+                    "unit as a number. Default: cm for BVH; the file's for USD and glTF.", show_default=False)]
 UpAxis = Annotated[UpAxisChoice | None, typer.Option(
-    "--up-axis", help="Vertical axis of a BVH file (default Y); overrides a USD stage's.", show_default=False,
+    "--up-axis", help="Vertical axis of a BVH file (default Y); overrides a USD or glTF file's.", show_default=False,
     case_sensitive=False)]
 RootOffset = Annotated[RootOffsetChoice, typer.Option(
     "--root-offset", help="BVH root OFFSET: 'add' to the root position channels (BVH spec), 'replace' by "
@@ -61,8 +61,9 @@ def parse_start_stop(text: str | None) -> tuple[int | None, int | None]:
 
 
 Skeleton = Annotated[str | None, typer.Option(
-    "--skeleton", help="The ASF skeleton file for .amc input, or the Skeleton prim path for a USD stage with "
-                       "several skeletons.", show_default=False)]
+    "--skeleton", help="The ASF skeleton file for .amc input, the Skeleton prim path for a USD stage with "
+                       "several skeletons, or the skin (index or name) of a glTF file with several.",
+    show_default=False)]
 
 
 @dataclass(frozen=True)

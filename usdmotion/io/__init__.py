@@ -15,6 +15,8 @@ from usdmotion.motion import Motion
 
 BVH_EXTENSIONS = (".bvh",)
 USD_EXTENSIONS = (".usd", ".usda", ".usdc", ".usdz")
+GLTF_EXTENSIONS = (".glb", ".gltf")
+KNOWN = f".bvh, {', '.join(USD_EXTENSIONS)}, {', '.join(GLTF_EXTENSIONS)}"
 
 
 def _kind(path: Path) -> str | None:
@@ -23,18 +25,22 @@ def _kind(path: Path) -> str | None:
         return "bvh"
     if ext in USD_EXTENSIONS:
         return "usd"
+    if ext in GLTF_EXTENSIONS:
+        return "gltf"
     return None
 
 
 def read_motion(path: str | os.PathLike, root_offset: str = "auto", units: str | float | None = None,
                 up_axis: str | None = None, lenient: bool = False, ignore_joint_positions: bool = False,
                 skeleton: str | None = None) -> Motion:
-    """Read a BVH or UsdSkel file.
+    """Read a BVH, UsdSkel or glTF 2.0 (.glb/.gltf) file.
 
     For BVH, ``units`` (default ``"cm"``) and ``up_axis`` (default ``"Y"``) state what the
-    file does not; for USD they come from the stage and, if given, override it.
-    ``skeleton`` names the ASF skeleton file of ``.amc`` input or the Skeleton prim path
-    of a USD stage with several skeletons; inputs that cannot take it raise ``InputError``.
+    file does not; for USD and glTF they come from the file (glTF: metres, Y up, or the
+    source's where usdmotion wrote it) and, if given, override it.
+    ``skeleton`` names the ASF skeleton file of ``.amc`` input, the Skeleton prim path
+    of a USD stage with several skeletons, or the skin (index or name) of a glTF file with
+    several; inputs that cannot take it raise ``InputError``.
 
     Raises:
         InputError: anything wrong with the file, always naming it: besides the readers'
@@ -112,11 +118,15 @@ def _read(path: Path, root_offset: str, units, up_axis, lenient: bool, ignore_jo
 
         with usd_diagnostics(path):
             return override_units_axis(read_usd(path), units, up_axis)
-    raise InputError(path, f"unknown input format {path.suffix!r} (use .bvh, {', '.join(USD_EXTENSIONS)})")
+    if kind == "gltf":
+        from usdmotion.io.gltf_read import read_gltf
+
+        return override_units_axis(read_gltf(path, skin=skeleton), units, up_axis)
+    raise InputError(path, f"unknown input format {path.suffix!r} (use {KNOWN})")
 
 
 def write_motion(motion: Motion, path: str | os.PathLike, **options) -> Path:
-    """Write ``motion`` as BVH or USD, chosen by the extension of ``path`` (atomically)."""
+    """Write ``motion`` as BVH, USD or glTF, chosen by the extension of ``path`` (atomically)."""
     path = Path(path)
     kind = _kind(path)
     if kind == "bvh":
@@ -127,4 +137,8 @@ def write_motion(motion: Motion, path: str | os.PathLike, **options) -> Path:
         from usdmotion.io.usd import write_usd
 
         return write_usd(motion, path, **{k: v for k, v in options.items() if k in ("name", "decorate")})
-    raise OutputError(f"{path}: unknown output format {path.suffix!r} (use .bvh, {', '.join(USD_EXTENSIONS)})")
+    if kind == "gltf":
+        from usdmotion.io.gltf import write_gltf
+
+        return write_gltf(motion, path, **{k: v for k, v in options.items() if k in ("name", "mesh", "fps", "body")})
+    raise OutputError(f"{path}: unknown output format {path.suffix!r} (use {KNOWN})")
