@@ -2,7 +2,7 @@
 
     python benchmarks/fuzz.py --minutes 10 [--seed 1] [--save]
 
-Mutates valid seeds (BVH, USDA, USDC, joint-map JSON, segments JSON, USD camera; see
+Mutates valid seeds (BVH, USDA, USDC, GLB, joint-map JSON, segments JSON, USD camera; see
 ``tests/fuzz_support.py``) and fuzzes render/retarget options, runs each case through
 the real CLI in-process and classifies it: ``ok`` (exit 0, output reads back), ``clean``
 (exit 2, one ``usdmotion: error:`` line, nothing left) or ``defect``. Prints counts per
@@ -10,8 +10,8 @@ entry point and writes ``benchmarks/results/fuzz.json``. With ``--save`` each di
 defect is kept as a reproducer in ``tests/data/malformed/fuzz/`` (file + command in
 ``manifest.json``), which ``tests/test_bad_input.py`` replays.
 
-ASF/AMC and GLB inputs join the campaign when their readers exist (``usdmotion.io``
-knows their extensions).
+GLB input is fuzzed too (byte-level mutations of a binary glTF); ASF/AMC joins when its
+reader is on main.
 """
 
 from __future__ import annotations
@@ -36,7 +36,7 @@ from fuzz_support import ENTRY_POINTS, MALFORMED, expand, make_seeds, mutate, op
 
 #: Relative weight of each entry point (slow ones — JAX, GL — drawn less often).
 WEIGHTS = {"convert_bvh": 6, "convert_bvh_small": 6, "info_bvh": 3, "convert_usda": 6, "convert_usdc": 3,
-           "info_usda": 3, "jointmap": 1, "segments": 3, "camera": 1, "render_options": 1, "retarget_options": 1}
+           "info_usda": 3, "convert_glb": 4, "jointmap": 1, "segments": 3, "camera": 1, "render_options": 1, "retarget_options": 1}
 FUZZ_DIR = MALFORMED / "fuzz"
 
 

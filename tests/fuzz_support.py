@@ -123,7 +123,7 @@ MUTATORS = (_replace_number, _replace_number, _delete_line, _duplicate_line, _sw
 
 
 def make_seeds(folder: Path) -> dict[str, Path]:
-    """Valid seed files, written to ``folder``: BVH, USDA, USDC, joint map, segments JSON,
+    """Valid seed files, written to ``folder``: BVH, USDA, USDC, GLB, joint map, segments JSON,
     USD camera (from the shipped CMU walk and the malformed corpus's valid base)."""
     from usdmotion.io import read_motion, write_motion
 
@@ -131,7 +131,8 @@ def make_seeds(folder: Path) -> dict[str, Path]:
     walk = read_motion(WALK).sliced(0, 6)  # small seeds: mutations stay fast
     seeds = {"bvh": write_motion(walk, folder / "walk.bvh"), "usda": write_motion(walk, folder / "walk.usda"),
              "usdc": write_motion(walk, folder / "walk.usdc"),
-             "walk": write_motion(read_motion(WALK).sliced(0, 120), folder / "walk120.bvh")}
+             "walk": write_motion(read_motion(WALK).sliced(0, 120), folder / "walk120.bvh"),
+             "glb": write_motion(walk, folder / "walk.glb")}
     small = folder / "small.bvh"
     shutil.copy(MALFORMED / "frames_more_than_rows.bvh", small)  # a valid base with one defect, fixed below
     text = small.read_text()
@@ -164,6 +165,7 @@ ENTRY_POINTS = {
     "convert_usda": ("usda", ["convert", "{src}", "{out}.bvh"]),
     "convert_usdc": ("usdc", ["convert", "{src}", "{out}.bvh"]),
     "info_usda": ("usda", ["info", "{src}"]),
+    "convert_glb": ("glb", ["convert", "{src}", "{out}.bvh"]),
     "jointmap": ("jointmap", ["retarget", "{walk}", "{out}.bvh", "--remove", "LThumb", "--map", "{src}",
                               "--iterations", "1"]),
     "segments": ("segments", ["segment-eval", "{walk}", "{src}"]),
