@@ -274,7 +274,10 @@ def test_6_a_joint_map_of_nested_arrays_is_refused_not_an_internal_error(tmp_pat
 @pytest.mark.parametrize("content", [b"garbage\x00\x01", b"#usda 1.0\ndef Camera \"c\" {\n", b"",
                                      # found by the property test: USD quotes the non-UTF-8 byte in its
                                      # parse error, and the binding cannot even decode its own message
-                                     b'#usda 1.0\n(\n    metedef Camera \x80"cam"\n{\n}\n'])
+                                     b'#usda 1.0\n(\n    metedef Camera \x80"cam"\n{\n}\n',
+                                     # campaign find: finite in USD's doubles, inf in the renderer's float32
+                                     b'#usda 1.0\ndef Camera "cam"\n{\n    double3 xformOp:translate = (1e39, 1, 6)\n'
+                                     b'    uniform token[] xformOpOrder = ["xformOp:translate"]\n}\n'])
 def test_6_a_corrupted_camera_file_names_the_file(tmp_path, capfd, content):
     camera = tmp_path / "cam.usda"
     camera.write_bytes(content)

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from usdmotion.constants import MAX_ABS_VALUE
 from usdmotion.errors import InputError, UsdMotionError
 from usdmotion.resources import resource_path
 
@@ -159,8 +160,8 @@ def usd_camera_track(spec: str, times: np.ndarray) -> CameraTrack:
             track = _usd_camera_track(path, prim_path, times)
         except (TypeError, ValueError, IndexError, ZeroDivisionError) as exc:
             raise InputError(path, f"unusable camera ({type(exc).__name__}: {str(exc).splitlines()[0]})") from None
-    ok = (bool(np.all(np.isfinite(track.poses))) and 0 < track.yfov < math.pi
-          and 0 < track.znear < track.zfar < math.inf)
+    ok = (bool(np.all(np.abs(track.poses) <= MAX_ABS_VALUE)) and 0 < track.yfov < math.pi
+          and 0 < track.znear < track.zfar <= MAX_ABS_VALUE)  # the renderer works in float32
     if not ok:
         raise InputError(path, "the camera's transform, field of view or clipping range is not usable "
                                f"(fov {math.degrees(track.yfov):.3g} deg, clipping {track.znear:.3g}..{track.zfar:.3g} m)")
