@@ -8,6 +8,7 @@ from typing import Annotated
 import typer
 
 from usdmotion.cli._options import InputPath, ReadOptions, parse_start_stop, reads_motion
+from usdmotion.cli._progress import progress
 from usdmotion.cli.app import app
 
 Opt = typer.Option
@@ -30,15 +31,29 @@ def render(
     grid_scale: Annotated[float, Opt(help="Grid spacing in metres.")] = 1.0,
     trace: Annotated[list[str] | None, Opt(help="Joint name or 'com' whose path to draw (repeatable).")] = None,
     overlay: Annotated[bool, Opt(help="Frame/time text overlay.")] = True,
+    angle: Annotated[list[str] | None, Opt(help="Angle to draw with its value (repeatable): knee_left, elbow_right, "
+                                                "hip_left, shoulder_right, ankle_left, wrist_right, trunk, or A,B,C "
+                                                "(at B). Values also go to OUT.angles.json.")] = None,
+    layout: Annotated[str | None, Opt(help="Several synchronised views ROWSxCOLUMNS, one --camera each: "
+                                           "--layout 2x2 --camera side,front,top,follow.")] = None,
+    panel: Annotated[str | None, Opt(help="Plot strip under the picture with a time cursor: angle:NAME and/or "
+                                          "speed:JOINT, comma-separated (angle:knee_left,speed:RightHand).")] = None,
+    strobe: Annotated[int | None, Opt(help="Stroboscope still: N poses over the range in one picture "
+                                           "(OUT is one .png/.jpg).")] = None,
+    strobe_every: Annotated[str | None, Opt(help="Stroboscope still with a pose every TIME: 0.1s, 100ms or "
+                                                 "12f.")] = None,
     compare: Annotated[Path | None, Opt(help="A second motion to compare with.")] = None,
     compare_mode: Annotated[str, Opt(help="ghost (overlaid, translucent) or side (side by side).")] = "ghost",
+    align: Annotated[str, Opt(help="How --compare's clock maps: start (same seconds), time (DTW on bone angles) "
+                                   "or frame:N,M (frame N shows with OTHER's frame M); OTHER is also moved onto "
+                                   "the main take's root and heading.")] = "start",
+    contact_shadow: Annotated[bool, Opt(help="Soft shadow disc on the ground under the body.")] = True,
     shadows: Annotated[bool, Opt(help="Shadows from the key light (about half the speed).")] = False,
     msaa: Annotated[int, Opt(help="Multisample anti-aliasing samples (0 = off, fastest).")] = 0,
     quality: Annotated[int, Opt(help="H.264 CRF (lower = better, larger).")] = 20,
     read: ReadOptions = ReadOptions(),
 ) -> None:
     """Render a motion offscreen to a video or image sequence (skinned body, stick figure)."""
-    from usdmotion.cli._progress import progress
     from usdmotion.render import RenderOptions, check_options, output_frames, render_motion
     from usdmotion.render.output import check_output
 
@@ -47,14 +62,24 @@ def render(
     options = RenderOptions(width=width, height=height, start=start, end=end, fps=fps, speed=speed, camera=camera,
                             style=style, grid=grid, grid_scale=grid_scale, traces=tuple(trace or ()),
                             overlay=overlay, compare_mode=compare_mode, shadows=shadows, msaa=msaa, quality=quality,
-                            labels=(source.name, compare.name if compare else ""))
+                            labels=(source.name, compare.name if compare else ""), angles=tuple(angle or ()),
+                            align=align, panel=panel, layout=layout, contact_shadow=contact_shadow)
     check_options(options)  # every option before any work
-    check_output(output, width, height)
+    if strobe is None and strobe_every is None:
+        check_output(output, width, height)
     motion = read.read(source)
     other = read.read(compare) if compare else None
+    if strobe is not None or strobe_every is not None:
+        from usdmotion.render.strobe import render_strobe
+
+        if other is not None:
+            raise ValueError("--strobe draws one take: leave out --compare")
+        shown = render_strobe(motion, output, options, strobe, strobe_every)
+        typer.echo(f"wrote {output}: {len(shown)} poses, frames {shown[0]}-{shown[-1]}, {width}x{height}")
+        return
     total = len(output_frames(motion, options)[0])
     with progress(f"rendering {output.name}", total=total, unit="frames") as update:
-        result = render_motion(motion, output, options, other, progress=lambda n: update(n))
+        result = render_motion(motion, output, options, other, progress=update)
     t = result.timings
     typer.echo(f"wrote {output}: {result.frames} frames {width}x{height} in {result.seconds:.1f} s "
                f"({result.fps:.1f} frames/s; body {t.get('build', 0):.1f} s, skinning {t.get('skin', 0):.1f} s, "

@@ -15,8 +15,10 @@ from usdmotion.motion import Motion
 
 BVH_EXTENSIONS = (".bvh",)
 USD_EXTENSIONS = (".usd", ".usda", ".usdc", ".usdz")
+AMC_EXTENSIONS = (".amc",)
 GLTF_EXTENSIONS = (".glb", ".gltf")
 KNOWN = f".bvh, {', '.join(USD_EXTENSIONS)}, {', '.join(GLTF_EXTENSIONS)}"
+READABLE = f"{KNOWN}, {', '.join(AMC_EXTENSIONS)}"
 
 
 def _kind(path: Path) -> str | None:
@@ -25,6 +27,8 @@ def _kind(path: Path) -> str | None:
         return "bvh"
     if ext in USD_EXTENSIONS:
         return "usd"
+    if ext in AMC_EXTENSIONS:
+        return "amc"
     if ext in GLTF_EXTENSIONS:
         return "gltf"
     return None
@@ -32,15 +36,17 @@ def _kind(path: Path) -> str | None:
 
 def read_motion(path: str | os.PathLike, root_offset: str = "auto", units: str | float | None = None,
                 up_axis: str | None = None, lenient: bool = False, ignore_joint_positions: bool = False,
-                skeleton: str | None = None) -> Motion:
-    """Read a BVH, UsdSkel or glTF 2.0 (.glb/.gltf) file.
+                skeleton: str | os.PathLike | None = None) -> Motion:
+    """Read a BVH, UsdSkel, glTF 2.0 (.glb/.gltf) or Acclaim AMC file.
 
     For BVH, ``units`` (default ``"cm"``) and ``up_axis`` (default ``"Y"``) state what the
     file does not; for USD and glTF they come from the file (glTF: metres, Y up, or the
-    source's where usdmotion wrote it) and, if given, override it.
-    ``skeleton`` names the ASF skeleton file of ``.amc`` input, the Skeleton prim path
-    of a USD stage with several skeletons, or the skin (index or name) of a glTF file with
-    several; inputs that cannot take it raise ``InputError``.
+    source's where usdmotion wrote it) and, if given, override it. For AMC, units come from
+    the ASF unless given.
+    ``skeleton`` names the ASF skeleton file of ``.amc`` input (default: the one beside it, see
+    :func:`usdmotion.io.amc.find_skeleton`), the Skeleton prim path of a USD stage with several
+    skeletons, or the skin (index or name) of a glTF file with several; inputs that cannot take
+    it raise ``InputError``.
 
     Raises:
         InputError: anything wrong with the file, always naming it: besides the readers'
@@ -122,7 +128,13 @@ def _read(path: Path, root_offset: str, units, up_axis, lenient: bool, ignore_jo
         from usdmotion.io.gltf_read import read_gltf
 
         return override_units_axis(read_gltf(path, skin=skeleton), units, up_axis)
-    raise InputError(path, f"unknown input format {path.suffix!r} (use {KNOWN})")
+    if kind == "amc":
+        from usdmotion.io.amc import read_amc
+
+        return read_amc(path, skeleton=skeleton, units=units)
+    if path.suffix.lower() == ".asf":
+        raise InputError(path, "an .asf file holds only a skeleton: read its .amc motion (with --skeleton FILE.asf)")
+    raise InputError(path, f"unknown input format {path.suffix!r} (use {READABLE})")
 
 
 def write_motion(motion: Motion, path: str | os.PathLike, **options) -> Path:

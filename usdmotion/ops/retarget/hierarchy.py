@@ -21,7 +21,7 @@ import numpy as np
 
 from usdmotion.constants import MAX_ABS_VALUE
 from usdmotion.errors import UsdMotionError
-from usdmotion.motion import ROTATION_CHANNELS, Motion
+from usdmotion.motion import ROTATION_CHANNELS, Motion, validate_topology
 
 DEFAULT_ROTATION_CHANNELS = ("Zrotation", "Xrotation", "Yrotation")
 #: Relative length change below which step 1 leaves an offset untouched (rigid bones).
@@ -67,8 +67,6 @@ class Rig:
     path: str | None = None
 
     def __post_init__(self) -> None:
-        from usdmotion.motion import validate_topology
-
         parents = np.asarray(self.parents, dtype=np.int64)
         ok, reason = validate_topology(parents)
         if not ok:
