@@ -204,17 +204,28 @@ def test_lenient_keeps_complete_rows_with_a_warning():
     assert "dropped 1 motion row" in messages and "Frames: 5" in messages
 
 
-def test_ten_thousand_deep_nesting_parses_without_recursion():
-    depth = 10_000
+def _chain_bvh(depth: int) -> str:
     lines = ["HIERARCHY", "ROOT j0", "{", "OFFSET 0 0 0", "CHANNELS 3 Zrotation Xrotation Yrotation"]
     for k in range(1, depth):
         lines += [f"JOINT j{k}", "{", "OFFSET 0 1 0", "CHANNELS 1 Zrotation"]
     lines += ["}"] * depth + ["MOTION", "Frames: 1", "Frame Time: 0.04",
                               "90 0 0 " + " ".join(["0"] * (depth - 1))]
-    motion = motion_from_bvh(parse_bvh("\n".join(lines)))
+    return "\n".join(lines)
+
+
+def test_deepest_supported_chain_parses_without_recursion_and_one_more_level_is_refused():
+    from usdmotion.constants import MAX_JOINT_DEPTH
+
+    depth = MAX_JOINT_DEPTH + 1  # joints at depths 0 .. MAX_JOINT_DEPTH
+    motion = motion_from_bvh(parse_bvh(_chain_bvh(depth)))
     assert motion.n_joints == depth
     tip = joint_positions(motion)[0, -1]
     assert np.allclose(tip, [-(depth - 1), 0, 0], atol=1e-6)  # root turned +90° about Z
+    text = _chain_bvh(depth + 1)
+    with pytest.raises(BvhParseError) as info:
+        parse_bvh(text)
+    assert info.value.line == text.split("\n").index(f"JOINT j{depth}") + 1
+    assert f"{depth} levels deep" in info.value.message and f"at most {MAX_JOINT_DEPTH}" in info.value.message
 
 
 def test_duplicate_joint_names_are_renamed_with_a_warning():

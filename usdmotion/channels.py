@@ -11,7 +11,7 @@ import dataclasses
 
 import numpy as np
 
-from usdmotion.constants import METERS_PER_UNIT
+from usdmotion.constants import MAX_METERS_PER_UNIT, METERS_PER_UNIT, MIN_METERS_PER_UNIT
 from usdmotion.motion import ROTATION_CHANNELS, Motion
 
 DEFAULT_ROOT_CHANNELS = ("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation")
@@ -73,8 +73,9 @@ def resolve_units(units: str | float) -> float:
         except ValueError:
             raise ValueError(f"unknown units {units!r}: use one of {', '.join(METERS_PER_UNIT)} "
                              "or metres per unit as a number") from None
-    if not (np.isfinite(value) and value > 0):
-        raise ValueError(f"units must be a positive number of metres per unit, got {units!r}")
+    if not (MIN_METERS_PER_UNIT <= value <= MAX_METERS_PER_UNIT):  # NaN fails too
+        raise ValueError(f"units must be a number of metres per unit in {MIN_METERS_PER_UNIT:g}.."
+                         f"{MAX_METERS_PER_UNIT:g} (a micrometre to 1,000 km), got {units!r}")
     return value
 
 

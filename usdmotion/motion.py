@@ -13,7 +13,8 @@ from typing import Literal
 
 import numpy as np
 
-from usdmotion.constants import UP_AXES
+from usdmotion.constants import (MAX_FPS, MAX_JOINT_DEPTH, MAX_JOINTS, MAX_METERS_PER_UNIT, MIN_FPS,
+                                 MIN_METERS_PER_UNIT, UP_AXES)
 from usdmotion.errors import TopologyError
 
 RootOffset = Literal["add", "replace"]
@@ -35,6 +36,8 @@ def validate_topology(parents: np.ndarray) -> tuple[bool, str]:
         return False, f"parent indices must be integers, got {parents.dtype}"
     if parents[0] != -1:
         return False, f"joint 0 must be the root (parent -1), has parent {parents[0]}"
+    if parents.size > MAX_JOINTS:
+        return False, f"{parents.size} joints; at most {MAX_JOINTS} are supported (far more than any real rig)"
     rest = parents[1:]
     if np.any(rest < 0):
         j = int(np.flatnonzero(rest < 0)[0]) + 1
@@ -43,14 +46,21 @@ def validate_topology(parents: np.ndarray) -> tuple[bool, str]:
     if np.any(too_late):
         j = int(np.flatnonzero(too_late)[0]) + 1
         return False, f"joint {j} has parent {parents[j]}, which does not come before it (cycle or bad order)"
+    depth = joint_depths(parents)
+    if depth.max() > MAX_JOINT_DEPTH:
+        j = int(np.argmax(depth > MAX_JOINT_DEPTH))
+        return False, (f"joint {j} is {int(depth[j])} levels deep; at most {MAX_JOINT_DEPTH} are supported "
+                       "(far more than any real rig)")
     return True, ""
 
 
 def joint_depths(parents: np.ndarray) -> np.ndarray:
-    """Depth of every joint ``(J,)`` (root = 0), for a valid parent array."""
+    """Depth of every joint ``(J,)`` (root = 0), for a parent array with parents before children."""
+    parents = np.asarray(parents, dtype=np.int64)
     depth = np.zeros(len(parents), dtype=np.int64)
-    for j in range(1, len(parents)):  # topology only, O(J)
-        depth[j] = depth[parents[j]] + 1
+    for j, p in enumerate(parents.tolist()):  # topology only, O(J)
+        if j:
+            depth[j] = depth[p] + 1
     return depth
 
 
@@ -166,6 +176,10 @@ class Motion:
             channels = tuple(tuple(str(c) for c in cs) for cs in self.channels)
             if len(channels) != n_joints:
                 raise ValueError(f"channels lists {len(channels)} joints, the skeleton has {n_joints}")
+            for j, cs in enumerate(channels):  # a layout no BVH reader could read back is not kept
+                if len(set(cs)) != len(cs) or not set(cs) <= set(CHANNEL_NAMES):
+                    raise ValueError(f"channels of joint {names[j]!r}: {' '.join(cs)!r} is not a BVH channel layout "
+                                     f"(distinct names among {', '.join(CHANNEL_NAMES)})")
             set_(self, "channels", channels)
         if self.source_channels is not None:
             sc = np.array(self.source_channels, dtype=np.float64)
@@ -174,11 +188,13 @@ class Motion:
                                  "use Motion.with_frames() when the frame count changes")
             sc.setflags(write=False)
             set_(self, "source_channels", sc)
-        if not (np.isfinite(self.fps) and self.fps > 0):
-            raise ValueError(f"fps must be a positive finite number, got {self.fps}")
+        if not (MIN_FPS <= self.fps <= MAX_FPS):
+            raise ValueError(f"fps must be a number in {MIN_FPS:.3g}..{MAX_FPS:g} (one frame an hour to a "
+                             f"megahertz), got {self.fps}")
         set_(self, "fps", float(self.fps))
-        if not (np.isfinite(self.meters_per_unit) and self.meters_per_unit > 0):
-            raise ValueError(f"meters_per_unit must be positive, got {self.meters_per_unit}")
+        if not (MIN_METERS_PER_UNIT <= self.meters_per_unit <= MAX_METERS_PER_UNIT):
+            raise ValueError(f"meters_per_unit must be in {MIN_METERS_PER_UNIT:g}..{MAX_METERS_PER_UNIT:g} "
+                             f"(a micrometre to 1,000 km), got {self.meters_per_unit}")
         set_(self, "meters_per_unit", float(self.meters_per_unit))
         if self.up_axis not in UP_AXES:
             raise ValueError(f"up_axis must be one of {UP_AXES}, got {self.up_axis!r}")

@@ -37,8 +37,44 @@ def _reject_constant(token: str):
     raise ValueError(f"{token} is not a number JSON allows")
 
 
+#: Deepest nesting of arrays/objects accepted in a user document (ours need 4).
+MAX_NESTING = 64
+
+
 def parse_text(text: str, path: str | os.PathLike | None, kind: str = "json") -> Any:
-    """Parse JSON or YAML text; syntax errors become one-line ``InputError``s with the line."""
+    """Parse JSON or YAML text; syntax errors become one-line ``InputError``s with the line.
+
+    Documents nested deeper than :data:`MAX_NESTING` are refused (before Python's
+    recursion limit could turn them into an internal error).
+    """
+    try:
+        document = _parse(text, path, kind)
+    except RecursionError:
+        document = None
+        depth = MAX_NESTING + 1
+    else:
+        depth = nesting_depth(document)
+    if depth > MAX_NESTING:
+        raise InputError(path, f"nested more than {MAX_NESTING} levels deep; not a usdmotion document")
+    return document
+
+
+def nesting_depth(document: Any) -> int:
+    """Deepest nesting of lists/dicts in ``document`` (a scalar is 0), without recursion."""
+    deepest, stack = 0, [(document, 0)]
+    while stack:
+        value, depth = stack.pop()
+        if isinstance(value, dict):
+            value = list(value.values())
+        if isinstance(value, list):
+            deepest = max(deepest, depth + 1)
+            if depth + 1 > MAX_NESTING:
+                break
+            stack.extend((item, depth + 1) for item in value)
+    return deepest
+
+
+def _parse(text: str, path: str | os.PathLike | None, kind: str) -> Any:
     if kind == "yaml":
         import yaml
 

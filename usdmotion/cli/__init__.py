@@ -17,7 +17,9 @@ from __future__ import annotations
 import importlib
 import os
 import pkgutil
+import signal
 import sys
+import threading
 import warnings
 
 from usdmotion.cli.app import app
@@ -62,6 +64,42 @@ def _show_warning(message, category, filename, lineno, file=None, line=None) -> 
     print(f"usdmotion: warning: {text}", file=sys.stderr)
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM/SIGHUP received: unwinds like Ctrl-C, so every ``finally`` (temporary
+    files of atomic writes, render writers) runs before the process exits."""
+
+
+#: Signals received during :func:`main` (typer turns a KeyboardInterrupt into a plain
+#: exit code 130, so the handler records what happened).
+_received: list[int] = []
+
+
+def _on_signal(signum, frame) -> None:
+    _received.append(signum)
+    if len(_received) > 1:  # already unwinding: let the cleanup finish
+        return
+    if signum == signal.SIGINT:
+        raise KeyboardInterrupt
+    raise Terminated(signal.Signals(signum).name)
+
+
+def _install_signal_handlers() -> dict:
+    """Route SIGINT, SIGTERM and SIGHUP through :func:`_on_signal`; returns the previous handlers."""
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+    return {sig: signal.signal(sig, _on_signal) for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
+
+
+def _interrupted() -> int:
+    """One line and the shell's exit code for the first signal received: 128 + its number."""
+    signum = _received[0] if _received else signal.SIGINT
+    if signum == signal.SIGINT:
+        _error("interrupted; no partial output was kept")
+    else:
+        _error(f"terminated by {signal.Signals(signum).name}; no partial output was kept")
+    return 128 + int(signum)
+
+
 def _error(message: str) -> None:
     print(f"usdmotion: error: {message}", file=sys.stderr)
 
@@ -70,15 +108,21 @@ def main(argv: list[str] | None = None) -> int:
     """Run the CLI; returns the exit code (0 ok, 1 checks failed / internal error, 2 bad input)."""
     import typer
 
-    _load_commands(sys.argv[1:] if argv is None else argv)
+    from usdmotion.errors import UsdMotionError
+
     debug = bool(os.environ.get("USDMOTION_DEBUG"))
     previous = warnings.showwarning
     warnings.showwarning = _show_warning
+    _received.clear()
+    handlers = _install_signal_handlers()
     try:
+        _load_commands(sys.argv[1:] if argv is None else argv)
         result = app(args=argv, prog_name="usdmotion", standalone_mode=False)
+        if _received:  # typer returned 130 for an interrupt
+            return _interrupted()
         return int(result) if isinstance(result, int) else 0
     except typer.Exit as exc:
-        return int(exc.exit_code)
+        return _interrupted() if _received else int(exc.exit_code)
     except typer.Abort:
         _error("aborted")
         return 130
@@ -87,8 +131,7 @@ def main(argv: list[str] | None = None) -> int:
         _error((message[0] if message else type(exc).__name__) + " (see --help)")
         return 2
     except KeyboardInterrupt:
-        _error("interrupted")
-        return 130
+        return _interrupted()
     except UsdMotionError as exc:
         if debug:
             raise
@@ -108,8 +151,20 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     finally:
         warnings.showwarning = previous
+        for sig, handler in handlers.items():
+            signal.signal(sig, handler)
 
 
 def run() -> None:
-    """Console-script entry point."""
-    sys.exit(main())
+    """Console-script entry point.
+
+    After a signal, every ``finally`` has run (no temporary file is left); the process
+    then ends at once, skipping the teardown of C++ libraries whose worker threads the
+    interrupt left mid-task (Arrow's would abort with ``terminate called ...``).
+    """
+    code = main()
+    if _received:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    sys.exit(code)

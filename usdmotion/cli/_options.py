@@ -83,6 +83,12 @@ class ReadOptions:
     ignore_joint_positions: bool = False
     skeleton: str | None = None
 
+    def __post_init__(self) -> None:
+        if self.units is not None:  # checked before any work, not after reading a long take
+            from usdmotion.channels import resolve_units
+
+            resolve_units(self.units)
+
     def read(self, path: Path):
         """The motion in ``path`` (progress shown for slow files)."""
         # Deferred so that loading the CLI (``--version``, ``--help``) does not import NumPy.

@@ -54,17 +54,21 @@ def render(
     read: ReadOptions = ReadOptions(),
 ) -> None:
     """Render a motion offscreen to a video or image sequence (skinned body, stick figure)."""
-    from usdmotion.render import RenderOptions, output_frames, render_motion
+    from usdmotion.render import RenderOptions, check_options, output_frames, render_motion
+    from usdmotion.render.output import check_output
 
     width, height = _size(size)
     start, end = parse_start_stop(frames)
-    motion = read.read(source)
-    other = read.read(compare) if compare else None
     options = RenderOptions(width=width, height=height, start=start, end=end, fps=fps, speed=speed, camera=camera,
                             style=style, grid=grid, grid_scale=grid_scale, traces=tuple(trace or ()),
                             overlay=overlay, compare_mode=compare_mode, shadows=shadows, msaa=msaa, quality=quality,
                             labels=(source.name, compare.name if compare else ""), angles=tuple(angle or ()),
                             align=align, panel=panel, layout=layout, contact_shadow=contact_shadow)
+    check_options(options)  # every option before any work
+    if strobe is None and strobe_every is None:
+        check_output(output, width, height)
+    motion = read.read(source)
+    other = read.read(compare) if compare else None
     if strobe is not None or strobe_every is not None:
         from usdmotion.render.strobe import render_strobe
 

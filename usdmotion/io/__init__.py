@@ -47,8 +47,66 @@ def read_motion(path: str | os.PathLike, root_offset: str = "auto", units: str |
     :func:`usdmotion.io.amc.find_skeleton`), the Skeleton prim path of a USD stage with several
     skeletons, or the skin (index or name) of a glTF file with several; inputs that cannot take
     it raise ``InputError``.
+
+    Raises:
+        InputError: anything wrong with the file, always naming it: besides the readers'
+            own errors, an invalid skeleton or frame rate, a NumPy warning or error
+            (``invalid value in divide``, a non-converging SVD: the numbers are broken),
+            any non-finite or absurd number (beyond ``MAX_ABS_VALUE``) in the motion read,
+            and an ``IndexError``, ``KeyError`` or ``TypeError`` of a reader tripping over
+            inconsistent content. USD's C++ diagnostics become usdmotion warnings.
     """
+    import warnings
+
+    import numpy as np
+
+    from usdmotion.errors import TopologyError
+
     path = Path(path)
+    try:
+        with warnings.catch_warnings(), np.errstate(all="warn"):
+            warnings.simplefilter("error", RuntimeWarning)  # NumPy's: the input is numerically broken
+            motion = _read(path, root_offset, units, up_axis, lenient, ignore_joint_positions, skeleton)
+    except InputError:
+        raise
+    except (TopologyError, ValueError, RuntimeWarning, FloatingPointError, np.linalg.LinAlgError,
+            IndexError, KeyError, TypeError) as exc:
+        text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        if isinstance(exc, (RuntimeWarning, FloatingPointError, np.linalg.LinAlgError)):
+            text = "invalid numbers in the motion: a rotation or transform is NaN, infinite or degenerate"
+        elif isinstance(exc, (IndexError, KeyError, TypeError)):  # a reader tripped over the content
+            text = f"inconsistent data the reader cannot use ({type(exc).__name__}: {text})"
+        raise InputError(path, text) from None
+    check_magnitudes(motion, path)
+    return motion
+
+
+def check_magnitudes(motion: Motion, path: str | os.PathLike | None) -> None:
+    """Refuse a motion holding NaN, ±inf or any value beyond ``MAX_ABS_VALUE``.
+
+    Checks offsets, root and joint translations and rotations with ``min``/``max`` only
+    (no temporary arrays of the motion's size).
+
+    Raises:
+        InputError: names ``path``, the array and (for per-frame data) the first bad frame.
+    """
+    import numpy as np
+
+    from usdmotion.constants import MAX_ABS_VALUE
+
+    arrays = {"joint offsets": motion.offsets, "root translation": motion.root_translation,
+              "joint translations": motion.joint_translations, "rotations": motion.rotations}
+    for name, a in arrays.items():
+        if a is None or a.size == 0 or -MAX_ABS_VALUE <= a.min() <= a.max() <= MAX_ABS_VALUE:
+            continue
+        bad = np.argwhere(~(np.abs(a) <= MAX_ABS_VALUE))[0]
+        where = "" if name == "joint offsets" else f" at frame {int(bad[0])}"
+        raise InputError(path, f"{name}{where}: {a[tuple(bad)]!r} is not a finite number within "
+                               f"±{MAX_ABS_VALUE:g}")
+
+
+def _read(path: Path, root_offset: str, units, up_axis, lenient: bool, ignore_joint_positions: bool,
+          skeleton: str | None) -> Motion:
     kind = _kind(path)
     if skeleton is not None:
         if kind == "bvh":
@@ -62,8 +120,10 @@ def read_motion(path: str | os.PathLike, root_offset: str = "auto", units: str |
                         up_axis=up_axis or "Y", lenient=lenient, ignore_joint_positions=ignore_joint_positions)
     if kind == "usd":
         from usdmotion.io.usd import read_usd
+        from usdmotion.usd_diagnostics import usd_diagnostics
 
-        return override_units_axis(read_usd(path), units, up_axis)
+        with usd_diagnostics(path):
+            return override_units_axis(read_usd(path), units, up_axis)
     if kind == "gltf":
         from usdmotion.io.gltf_read import read_gltf
 

@@ -7,7 +7,9 @@ from __future__ import annotations
 
 import contextlib
 import os
+import signal
 import tempfile
+import threading
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -29,21 +31,43 @@ def atomic_output(path: str | os.PathLike, suffix: str | None = None) -> Iterato
     if not folder.is_dir():
         raise OutputError(f"{path}: folder {folder} does not exist")
     suffix = path.suffix if suffix is None else suffix
+    tmp = None
+    held = _hold_signals()  # a Ctrl-C between creating the file and knowing its name would leak it
     try:
-        fd, tmp_name = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".tmp" + suffix, dir=folder)
-    except OSError as exc:
-        raise OutputError(f"{path}: cannot write in {folder}: {exc.strerror or exc}") from None
-    os.close(fd)
-    tmp = Path(tmp_name)
-    try:
+        try:
+            fd, tmp_name = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".tmp" + suffix, dir=folder)
+        except OSError as exc:
+            raise OutputError(f"{path}: cannot write in {folder}: {exc.strerror or exc}") from None
+        os.close(fd)
+        tmp = Path(tmp_name)
+        held = _release_signals(held)  # a signal held meanwhile is raised here, inside the try
         yield tmp
         os.chmod(tmp, 0o666 & ~_umask())  # mkstemp creates 0600; give the usual permissions
         os.replace(tmp, path)
     except OSError as exc:
         raise OutputError(f"{path}: cannot write: {exc.strerror or exc}") from None
     finally:
-        with contextlib.suppress(FileNotFoundError):
-            tmp.unlink()
+        _release_signals(held)
+        if tmp is not None:
+            with contextlib.suppress(FileNotFoundError):
+                tmp.unlink()
+
+
+_HELD = {signal.SIGINT, signal.SIGTERM, signal.SIGHUP}
+
+
+def _hold_signals():
+    """Block SIGINT/SIGTERM/SIGHUP (main thread only); returns the previous mask or None."""
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    return signal.pthread_sigmask(signal.SIG_BLOCK, _HELD)
+
+
+def _release_signals(previous) -> None:
+    """Restore the mask ``_hold_signals`` returned; a signal that arrived meanwhile is delivered."""
+    if previous is not None:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+    return None
 
 
 def _umask() -> int:

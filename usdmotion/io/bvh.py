@@ -27,8 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
-from usdmotion.constants import MAX_FRAMES
 from usdmotion.channels import channel_columns, euler_columns, resolve_units, rotation_order
+from usdmotion.constants import MAX_ABS_VALUE, MAX_FRAMES
 from usdmotion.errors import BvhParseError, UsdMotionWarning
 from usdmotion.io.bvh_header import BvhHeader, frame_rate, header_arrays, parse_header
 from usdmotion.io.bvh_rows import line_of_row, parse_rows
@@ -172,12 +172,14 @@ def parse_bvh(text: str | bytes, path: str | os.PathLike | None = None, lenient:
                                 header.frames_line)
         warnings.warn(f"{path}:{header.frames_line}: {message}; keeping {n_rows}", UsdMotionWarning,
                       stacklevel=2)
-    bad = ~np.isfinite(values)
-    if bad.any():
-        row, col = (int(i) for i in np.argwhere(bad)[0])
+    if values.size and not -MAX_ABS_VALUE <= values.min() <= values.max() <= MAX_ABS_VALUE:  # NaN propagates
+        row, col = (int(i) for i in np.argwhere(~(np.abs(values) <= MAX_ABS_VALUE))[0])
         line = line_of_row(data, row, header.data_line)
-        raise BvhParseError(path, f"non-finite value ({values[row, col]}) in channel {col + 1} of the motion row",
-                            line)
+        if not np.isfinite(values[row, col]):
+            raise BvhParseError(path, f"non-finite value ({values[row, col]}) in channel {col + 1} of the motion row",
+                                line)
+        raise BvhParseError(path, f"value beyond ±{MAX_ABS_VALUE:g} ({values[row, col]}) in channel {col + 1} of the "
+                                  "motion row", line)
     parents, offsets = header_arrays(header)
     values.setflags(write=False)
     return BvhData(
@@ -221,8 +223,16 @@ def rotations_from_channels(values: np.ndarray, channels: tuple[tuple[str, ...],
                 halves.append(plane)
             rotations[frames, joints] = half_angles_to_quat(*halves, order)
 
-        over_slices(convert, n_frames, min_items=max(1, 40_000 // len(joints)))
+        for block in range(0, n_frames, _BLOCK_FRAMES):  # bounded temporaries, whatever the length
+            size = min(_BLOCK_FRAMES, n_frames - block)
+            over_slices(lambda part, block=block, convert=convert: convert(slice(block + part.start,
+                                                                                 block + part.stop)),
+                        size, min_items=max(1, 40_000 // len(joints)))
     return rotations
+
+
+#: Frames converted at a time (the Euler → quaternion temporaries scale with it, not the take).
+_BLOCK_FRAMES = 32_768
 
 
 def _positions(values: np.ndarray, columns: dict[str, int], base: np.ndarray, add: bool) -> np.ndarray:

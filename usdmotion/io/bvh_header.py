@@ -6,7 +6,7 @@ Produces plain arrays; nothing here knows about rotations. The grammar accepted:
     ROOT name {                      # name may contain spaces and ':'
         OFFSET x y z                 # exactly three numbers on the line
         CHANNELS n name_1 ... name_n # any of X/Y/Z position/rotation, any order
-        JOINT name { ... }           # any depth (no recursion: 10,000 levels are fine)
+        JOINT name { ... }           # up to MAX_JOINT_DEPTH (1,000) levels, no recursion
         End Site { [OFFSET x y z] }  # the OFFSET may be missing (zero)
     }
     MOTION
@@ -18,12 +18,14 @@ Keywords are case-insensitive; braces may share a line with other tokens.
 
 from __future__ import annotations
 
+import collections
 import math
 import re
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from usdmotion.constants import MAX_ABS_VALUE, MAX_FPS, MAX_JOINT_DEPTH, MAX_JOINTS, MIN_FPS
 from usdmotion.errors import BvhParseError
 from usdmotion.motion import CHANNEL_NAMES
 
@@ -58,40 +60,43 @@ class BvhHeader:
 
 
 class _Cursor:
-    """Token stream over the hierarchy lines with one-token lookahead.
+    """Token stream over the hierarchy lines with one-token lookahead, tokenized lazily
+    one line at a time (a refused file costs only the lines read before its error).
 
     ``end_line`` is the line of ``MOTION`` (or the last line), reported when the
     hierarchy runs out of tokens.
     """
 
-    def __init__(self, tokens: list[Token], path: str | None, end_line: int, at_motion: bool):
-        self.tokens = tokens
-        self.pos = 0
+    def __init__(self, text: str, end: int, path: str | None, end_line: int, at_motion: bool):
+        self._lines = enumerate(text[:end].split("\n"), start=1)
+        self._buffer: collections.deque[Token] = collections.deque()  # the rest of the current line
+        self.last: Token | None = None
         self.path = path
         self.end_line = end_line
         self.at_motion = at_motion
 
     def peek(self) -> Token | None:
-        return self.tokens[self.pos] if self.pos < len(self.tokens) else None
+        while not self._buffer:
+            line_no, line = next(self._lines, (None, None))
+            if line is None:
+                return None
+            self._buffer.extend(Token(m.group(0), line_no, m.start() + 1) for m in _TOKEN.finditer(line))
+        return self._buffer[0]
 
     def next(self, expected: str) -> Token:
         tok = self.peek()
         if tok is None:
-            last = self.tokens[-1] if self.tokens else Token("", 1, 1)
+            last = self.last or Token("", 1, 1)
             raise BvhParseError(self.path, f"file ends inside the hierarchy, expected {expected}", last.line)
-        self.pos += 1
+        self.last = self._buffer.popleft()
         return tok
+
+    def rest_of_line(self, line: int) -> list[Token]:
+        """Tokens not yet read on ``line`` (the current line)."""
+        return [t for t in self._buffer if t.line == line]
 
     def error(self, tok: Token, message: str) -> BvhParseError:
         return BvhParseError(self.path, message, tok.line, tok.column)
-
-
-def _tokenize(text: str, end: int) -> list[Token]:
-    tokens = []
-    for line_no, line in enumerate(text[:end].split("\n"), start=1):
-        for m in _TOKEN.finditer(line):
-            tokens.append(Token(m.group(0), line_no, m.start() + 1))
-    return tokens
 
 
 def _parse_float(cur: _Cursor, tok: Token, what: str) -> float:
@@ -101,6 +106,8 @@ def _parse_float(cur: _Cursor, tok: Token, what: str) -> float:
         raise cur.error(tok, f"{what}: {tok.text!r} is not a number") from None
     if not math.isfinite(value):
         raise cur.error(tok, f"{what}: {tok.text!r} is not a finite number")
+    if abs(value) > MAX_ABS_VALUE:
+        raise cur.error(tok, f"{what}: {tok.text} is beyond ±{MAX_ABS_VALUE:g}")
     return value
 
 
@@ -114,7 +121,7 @@ def _read_offset(cur: _Cursor, keyword: Token) -> tuple[float, float, float]:
         values.append(_parse_float(cur, tok, "OFFSET"))
     extra = cur.peek()
     if extra is not None and extra.line == keyword.line and extra.text not in "{}":
-        count = 3 + sum(1 for t in cur.tokens[cur.pos:] if t.line == keyword.line and t.text not in "{}")
+        count = 3 + sum(1 for t in cur.rest_of_line(keyword.line) if t.text not in "{}")
         raise cur.error(extra, f"OFFSET has {count} values, expected 3")
     return values[0], values[1], values[2]
 
@@ -135,7 +142,7 @@ def _read_channels(cur: _Cursor, keyword: Token) -> tuple[str, ...]:
             where = tok if tok is not None else count_tok
             raise cur.error(where, f"CHANNELS says {count} but lists {k} channel names"
                             + ("" if tok is None else f" (then {tok.text!r})"))
-        cur.pos += 1
+        cur.next("")
         if name in names:
             raise cur.error(tok, f"channel {name} is listed twice")
         names.append(name)
@@ -151,7 +158,7 @@ def _read_name(cur: _Cursor, keyword: Token) -> tuple[str, Token]:
     while (tok := cur.peek()) is not None and tok.line == keyword.line and tok.text not in "{}":
         parts.append(tok.text)
         first = first or tok
-        cur.pos += 1
+        cur.next("")
     if not parts:
         raise cur.error(keyword, f"{keyword.text} has no name")
     return " ".join(parts), first
@@ -180,6 +187,12 @@ def _parse_hierarchy(cur: _Cursor, header: BvhHeader) -> None:
             brace = cur.next("'{'")
             if brace.text != "{":
                 raise cur.error(brace, f"expected '{{' after {kw.text} {name}, found {brace.text!r}")
+            if len(header.joint_names) >= MAX_JOINTS:
+                raise cur.error(kw, f"more than {MAX_JOINTS} joints; at most {MAX_JOINTS} are supported "
+                                    "(far more than any real rig)")
+            if len(stack) > MAX_JOINT_DEPTH:
+                raise cur.error(kw, f"{name} is {len(stack)} levels deep; at most {MAX_JOINT_DEPTH} are "
+                                    "supported (far more than any real rig)")
             header.joint_names.append(name)
             header.parents.append(parent)
             header.offsets.append((0.0, 0.0, 0.0))
@@ -237,8 +250,8 @@ def parse_header(text: str, path: str | None) -> BvhHeader:
     hierarchy_end = motion_at.start() if motion_at else len(text)
     last_content_line = len(text[:hierarchy_end].rstrip().split("\n"))
     end_line = text.count("\n", 0, hierarchy_end) + 1 if motion_at else last_content_line
-    cur = _Cursor(_tokenize(text, hierarchy_end), path, end_line, motion_at is not None)
-    if not cur.tokens:
+    cur = _Cursor(text, hierarchy_end, path, end_line, motion_at is not None)
+    if cur.peek() is None:
         raise BvhParseError(path, "no HIERARCHY section (empty or blank file?)", 1)
     _parse_hierarchy(cur, header)
     extra = cur.peek()
@@ -289,6 +302,9 @@ def _parse_motion_header(text: str, start: int, header: BvhHeader, path: str | N
         raise BvhParseError(path, f"Frame Time: {time_text!r} is not a number", time_line) from None
     if not (math.isfinite(frame_time) and frame_time > 0):
         raise BvhParseError(path, f"Frame Time: {time_text} must be a positive number of seconds", time_line)
+    if not 1.0 / MAX_FPS <= frame_time <= 1.0 / MIN_FPS:
+        raise BvhParseError(path, f"Frame Time: {time_text} s is outside {1 / MAX_FPS:g}..{1 / MIN_FPS:g} s "
+                                  "(one frame a microsecond to one an hour)", time_line)
     header.n_frames = n_frames
     header.frame_time = frame_time
     header.frame_time_text = time_text

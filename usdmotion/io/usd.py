@@ -30,7 +30,8 @@ import numpy as np
 
 from usdmotion.errors import OutputError, UsdMotionWarning, UsdReadError
 from usdmotion.io.atomic import atomic_output
-from usdmotion.kinematics import compose_transforms, local_translations, rest_pose
+from usdmotion.usd_diagnostics import usd_error_message
+from usdmotion.kinematics import compose_transforms, rest_pose
 from usdmotion.motion import Motion
 from usdmotion.rotations import matrix_to_quat, quat_mul, quat_rotate, wxyz_to_xyzw
 
@@ -123,18 +124,35 @@ def define_skeleton(stage, motion: Motion, root_path: str):
     binding = UsdSkel.BindingAPI.Apply(skel.GetPrim())
     binding.CreateAnimationSourceRel().SetTargets([anim.GetPath()])
 
-    translations = local_translations(motion).astype(np.float32)
-    rotations = wxyz_to_xyzw(motion.rotations).astype(np.float32)
     layer = stage.GetRootLayer()
     t_path, r_path = translations_attr.GetPath(), rotations_attr.GetPath()
     if motion.n_frames == 0:
         translations_attr.Set(Vt.Vec3fArray.FromNumpy(motion.offsets.astype(np.float32)))
         rotations_attr.Set(Vt.QuatfArray.FromNumpy(np.tile(np.float32([0, 0, 0, 1]), (motion.n_joints, 1))))
     with Sdf.ChangeBlock():
-        for f in range(motion.n_frames):  # one time sample per frame: the USD API's unit
-            layer.SetTimeSample(t_path, float(f), Vt.Vec3fArray.FromNumpy(translations[f]))
-            layer.SetTimeSample(r_path, float(f), Vt.QuatfArray.FromNumpy(rotations[f]))
+        for start in range(0, motion.n_frames, _CHUNK_FRAMES):  # float32 copies of one chunk at a time
+            translations, rotations = _float32_samples(motion, start, start + _CHUNK_FRAMES)
+            for k in range(translations.shape[0]):  # one time sample per frame: the USD API's unit
+                layer.SetTimeSample(t_path, float(start + k), Vt.Vec3fArray.FromNumpy(translations[k]))
+                layer.SetTimeSample(r_path, float(start + k), Vt.QuatfArray.FromNumpy(rotations[k]))
     return skel
+
+
+#: Frames converted to float32 at a time while writing (bounds the temporary copies).
+_CHUNK_FRAMES = 4096
+
+
+def _float32_samples(motion: Motion, start: int, stop: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(translations (n, J, 3), rotations xyzw (n, J, 4))`` float32 of frames ``start:stop``."""
+    stop = min(stop, motion.n_frames)
+    if motion.joint_translations is not None:
+        translations = motion.joint_translations[start:stop].astype(np.float32)
+    else:
+        translations = np.empty((stop - start, motion.n_joints, 3), np.float32)
+        translations[:] = motion.offsets.astype(np.float32)
+    translations[:, 0] = motion.root_translation[start:stop]
+    rotations = wxyz_to_xyzw(motion.rotations[start:stop]).astype(np.float32)
+    return translations, rotations
 
 
 def write_usd(motion: Motion, path: str | os.PathLike, name: str | None = None,
@@ -154,6 +172,7 @@ def write_usd(motion: Motion, path: str | os.PathLike, name: str | None = None,
     ext = path.suffix.lower()
     if ext not in USD_EXTENSIONS:
         raise OutputError(f"{path}: unknown USD extension {ext!r} (use {', '.join(USD_EXTENSIONS)})")
+    _check_float32(motion, path)
     root_path = "/" + _stage_name(path, name)
     with atomic_output(path) as tmp:
         layer_path = tmp
@@ -177,6 +196,16 @@ def write_usd(motion: Motion, path: str | os.PathLike, name: str | None = None,
             if scratch is not None:
                 shutil.rmtree(scratch, ignore_errors=True)
     return path
+
+
+def _check_float32(motion: Motion, path: Path) -> None:
+    """Refuse translations that USD's float32 samples cannot hold (they would become inf)."""
+    limit = float(np.finfo(np.float32).max)
+    for name, a in (("joint offsets", motion.offsets), ("root translation", motion.root_translation),
+                    ("joint translations", motion.joint_translations)):
+        if a is not None and a.size and not -limit <= a.min() <= a.max() <= limit:
+            raise OutputError(f"{path}: {name} hold values beyond USD's float32 range (±{limit:.3g}) or NaN; "
+                              "nothing written")
 
 
 def validate_stage(stage) -> list[str]:
@@ -203,8 +232,8 @@ def _open_stage(path: Path):
     try:
         stage = Usd.Stage.Open(str(path))
     except Tf.ErrorException as exc:
-        first = str(exc).strip().splitlines()
-        raise UsdReadError(path, f"cannot open as USD: {first[-1].strip() if first else exc}") from None
+        line, message = usd_error_message(exc)
+        raise UsdReadError(path, f"cannot open as USD: {message}", line) from None
     if stage is None:
         raise UsdReadError(path, "cannot open as USD")
     return stage

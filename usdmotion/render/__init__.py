@@ -92,8 +92,6 @@ def output_frames(motion: Motion, options: RenderOptions) -> tuple[np.ndarray, n
     """``(source_frames (N,), times (N,) s, fps)`` of the output, per options."""
     start = 0 if options.start is None else int(options.start)
     end = motion.n_frames if options.end is None else min(int(options.end), motion.n_frames)
-    if start < 0:
-        start += motion.n_frames
     if motion.n_frames == 0 or end <= start or start >= motion.n_frames:
         raise UsdMotionError(f"no frames to render (the motion has {motion.n_frames} frames, "
                              f"range {start}:{end})")
@@ -109,15 +107,37 @@ def output_frames(motion: Motion, options: RenderOptions) -> tuple[np.ndarray, n
     return frames, times, fps
 
 
-def _check_options(options: RenderOptions) -> None:
+#: Multisample counts OpenGL drivers accept (0 = off).
+MSAA_SAMPLES = (0, 1, 2, 4, 8, 16)
+
+
+def check_options(options: RenderOptions) -> None:
+    """Refuse any option out of range before work starts (raises ``UsdMotionError``)."""
     if options.style not in STYLES:
         raise UsdMotionError(f"unknown style {options.style!r} (use {', '.join(STYLES)})")
     if options.compare_mode not in COMPARE_MODES:
         raise UsdMotionError(f"unknown compare mode {options.compare_mode!r} (use {', '.join(COMPARE_MODES)})")
     if not (16 <= options.width <= 8192 and 16 <= options.height <= 8192):
         raise UsdMotionError(f"image size {options.width}x{options.height} is outside 16..8192")
-    if not options.grid_scale > 0:
-        raise UsdMotionError(f"--grid-scale must be positive, got {options.grid_scale}")
+    if not (math.isfinite(options.grid_scale) and options.grid_scale > 0):
+        raise UsdMotionError(f"--grid-scale must be a positive number, got {options.grid_scale}")
+    if not (math.isfinite(options.speed) and options.speed > 0):
+        raise UsdMotionError(f"--speed must be a positive number, got {options.speed}")
+    if options.fps is not None and not (math.isfinite(options.fps) and 0 < options.fps <= 1000):
+        raise UsdMotionError(f"--fps must be a number in (0, 1000], got {options.fps}")
+    if options.msaa not in MSAA_SAMPLES:
+        raise UsdMotionError(f"--msaa must be one of {', '.join(map(str, MSAA_SAMPLES))}, got {options.msaa}")
+    if not 0 <= options.quality <= 51:
+        raise UsdMotionError(f"--quality (H.264 CRF) must be in 0..51, got {options.quality}")
+    if not 4 <= options.body_resolution <= 1024:
+        raise UsdMotionError(f"body resolution must be in 4..1024, got {options.body_resolution}")
+    from usdmotion.render.camera import check_camera
+
+    check_camera(options.camera)
+    for name, value in (("start", options.start), ("stop", options.end)):
+        if value is not None and value < 0:
+            raise UsdMotionError(f"--frames: {name} {value} is negative; frames count from 0 "
+                                 "(no Python-style negative indices)")
 
 
 def render_joints(motion: Motion, frames: np.ndarray) -> np.ndarray:
@@ -133,7 +153,7 @@ def plan_render(motion: Motion, options: RenderOptions, other: Motion | None = N
     from usdmotion.render.scene import to_render_space
     from usdmotion.skin import body_size
 
-    _check_options(options)
+    check_options(options)
     for name in options.traces:
         if name.lower() not in ("com", "centre_of_mass", "center_of_mass"):
             try:

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from usdmotion.constants import MAX_ABS_VALUE
 from usdmotion.errors import InputError, UsdMotionError
 from usdmotion.resources import resource_path
 
@@ -42,6 +43,19 @@ def load_presets(path: Path | None = None) -> dict[str, dict]:
     except (OSError, yaml.YAMLError) as exc:
         raise UsdMotionError(f"{path}: cannot read the camera presets: {exc}") from None
     return {str(k): dict(v) for k, v in (data or {}).items()}
+
+
+def check_camera(spec: str) -> None:
+    """Refuse an unknown preset or a missing camera file before any work."""
+    if is_usd_camera(spec):
+        path = Path(_USD_CAMERA.match(spec)["file"])
+        if not path.is_file():
+            raise InputError(path, "no such camera file")
+        return
+    presets = load_presets()
+    if spec not in presets:
+        raise UsdMotionError(f"unknown camera preset {spec!r} (use one of: {', '.join(sorted(presets))}, "
+                             "or a USD file with a camera, e.g. cam.usda:/World/Camera)")
 
 
 def is_usd_camera(spec: str) -> bool:
@@ -128,13 +142,35 @@ def _fit_distance(points: np.ndarray, back: np.ndarray, up_hint: np.ndarray, yfo
 
 def usd_camera_track(spec: str, times: np.ndarray) -> CameraTrack:
     """Poses of the camera in a USD file at ``times (N,)`` seconds (stage time = seconds ×
-    timeCodesPerSecond), converted to render space (metres, Y up)."""
-    from pxr import Gf, Usd, UsdGeom
+    timeCodesPerSecond), converted to render space (metres, Y up).
+
+    Raises:
+        InputError: naming the camera file: not USD, no camera, or a camera whose
+            transform, field of view or clipping range is unusable (USD's own
+            diagnostics become usdmotion warnings).
+    """
+    from usdmotion.usd_diagnostics import usd_diagnostics
 
     match = _USD_CAMERA.match(spec)
     path, prim_path = Path(match["file"]), match["prim"]
     if not path.is_file():
         raise InputError(path, "no such camera file")
+    with usd_diagnostics(path), np.errstate(all="ignore"):  # a degenerate camera is refused below
+        try:
+            track = _usd_camera_track(path, prim_path, times)
+        except (TypeError, ValueError, IndexError, ZeroDivisionError) as exc:
+            raise InputError(path, f"unusable camera ({type(exc).__name__}: {str(exc).splitlines()[0]})") from None
+    ok = (bool(np.all(np.abs(track.poses) <= MAX_ABS_VALUE)) and 0 < track.yfov < math.pi
+          and 0 < track.znear < track.zfar <= MAX_ABS_VALUE)  # the renderer works in float32
+    if not ok:
+        raise InputError(path, "the camera's transform, field of view or clipping range is not usable "
+                               f"(fov {math.degrees(track.yfov):.3g} deg, clipping {track.znear:.3g}..{track.zfar:.3g} m)")
+    return track
+
+
+def _usd_camera_track(path: Path, prim_path: str | None, times: np.ndarray) -> CameraTrack:
+    from pxr import Gf, Usd, UsdGeom
+
     stage = Usd.Stage.Open(str(path))
     if stage is None:
         raise InputError(path, "cannot open as USD")

@@ -146,7 +146,18 @@ CASES: dict[str, tuple[str | bytes, str | None, str]] = {
     "row_nan": (sub("1 90 0 10", "1 nan 0 10"), "1 nan", "non-finite"),
     "row_inf": (sub("0 90 0 0 0", "0 90 0 -inf 0"), "0 90 0 -inf", "non-finite"),
     "giant_swing_paper": (GIANT_SWING_PAPER, "OFFSET 0 0 10.0 0.0", "OFFSET has 4 values, expected 3"),
-    "deep_nesting_unclosed": (deep_unclosed(10_000), "MOTION", "3 '}' missing"),
+    "deep_nesting_unclosed": (deep_unclosed(1_000), "MOTION", "3 '}' missing"),
+    # issue 16 item 2: numbers beyond float32 (USD's samples) or absurd (MAX_ABS_VALUE = 1e15)
+    "row_beyond_float32": (sub("1 90 0 10", "1e39 90 0 10"), "1e39 90", "value beyond ±1e+15"),
+    "row_1e308": (sub("1 90 0 10", "1 1e308 0 10"), "1 1e308", "value beyond ±1e+15"),
+    "offset_beyond_float32": (sub("OFFSET 0 10 0\n    CHANNELS", "OFFSET 0 1e39 0\n    CHANNELS"),
+                              "OFFSET 0 1e39", "beyond ±1e+15"),
+    # item 8: a frame time of 1e300 s is a typo, not a recording (MIN_FPS .. MAX_FPS)
+    "frame_time_huge": (sub("Frame Time: 0.033333", "Frame Time: 1e300"), "Frame Time: 1e300", "one an hour"),
+    "frame_time_tiny": (sub("Frame Time: 0.033333", "Frame Time: 1e-300"), "Frame Time: 1e-300",
+                        "one frame a microsecond"),
+    # MAX_JOINT_DEPTH = 1,000: joint j1001 is one level too deep (issue 16 item 1).
+    "chain_too_deep": (deep_unclosed(1_005), "JOINT j1001\n", "1001 levels deep; at most 1000"),
 }
 
 

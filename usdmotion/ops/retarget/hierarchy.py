@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from usdmotion.constants import MAX_ABS_VALUE
 from usdmotion.errors import UsdMotionError
 from usdmotion.motion import ROTATION_CHANNELS, Motion, validate_topology
 
@@ -140,8 +141,9 @@ def parse_add(spec: str) -> AddSpec:
         offset = tuple(float(v) for v in parts[2].split(","))
     except ValueError:
         offset = ()
-    if len(offset) != 3 or not np.all(np.isfinite(offset)):
-        raise RetargetError(f"--add {spec!r}: the offset must be three numbers X,Y,Z")
+    if len(offset) != 3 or not np.all(np.abs(offset) <= MAX_ABS_VALUE):
+        raise RetargetError(f"--add {spec!r}: the offset must be three finite numbers X,Y,Z within "
+                            f"±{MAX_ABS_VALUE:g}")
     children = tuple(c.strip() for c in parts[3].split(",") if c.strip()) if len(parts) == 4 else ()
     return AddSpec(parts[0].strip(), parts[1].strip(), offset, children)  # type: ignore[arg-type]
 

@@ -19,7 +19,6 @@ and body landmarks share.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -80,10 +79,15 @@ def load_joint_map(path: str | Path) -> JointMap:
         raise JointMapError(path, "no such file") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise JointMapError(path, f"cannot read: {exc}") from None
+    from usdmotion.schemas import _json_path, _non_finite, parse_text
+
     try:
-        doc = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise JointMapError(path, f"not valid JSON: {exc.msg}", exc.lineno, exc.colno) from None
+        doc = parse_text(text, path)  # refuses NaN/Infinity, absurd nesting
+    except InputError as exc:
+        raise JointMapError(path, exc.message, exc.line, exc.column) from None
+    bad = _non_finite(doc)  # 1e400 parses as inf
+    if bad is not None:
+        raise JointMapError(path, f"invalid joint map at {_json_path(bad)}: not a finite number")
     _validate(doc, "jointmap", path)
     pairs: dict[str, str | None] = {}
     weights: dict[str, float] = {}

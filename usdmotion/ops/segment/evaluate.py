@@ -133,8 +133,10 @@ def load_labels(path: str | os.PathLike, trial: int = 0, first_frame: int = 1) -
         if path.lower().endswith(".csv"):
             return _from_csv(path, first_frame)
         if path.lower().endswith(".json"):
+            from usdmotion.schemas import parse_text
+
             with open(path, encoding="utf-8") as fh:
-                data = json.load(fh)
+                data = parse_text(fh.read(), path)  # NaN, Infinity and absurd nesting refused
             if isinstance(data, dict) and ("gt" in data or "gt:" in data):
                 return _from_gt_json(data, trial, first_frame, path)
             if isinstance(data, dict) and "cuts" in data:
@@ -146,7 +148,7 @@ def load_labels(path: str | os.PathLike, trial: int = 0, first_frame: int = 1) -
         raise
     except FileNotFoundError:
         raise InputError(path, "no such file") from None
-    except (OSError, ValueError, KeyError, TypeError, IndexError, json.JSONDecodeError) as exc:
+    except (OSError, ValueError, KeyError, TypeError, IndexError, OverflowError, json.JSONDecodeError) as exc:
         raise InputError(path, f"cannot read labels: {type(exc).__name__}: {exc}") from None
 
 

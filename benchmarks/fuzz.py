@@ -1,0 +1,129 @@
+"""Mutation-fuzzing campaign over every user input of the CLI (issue 16).
+
+    python benchmarks/fuzz.py --minutes 10 [--seed 1] [--save]
+
+Mutates valid seeds (BVH, USDA, USDC, GLB, joint-map JSON, segments JSON, USD camera; see
+``tests/fuzz_support.py``) and fuzzes render/retarget options, runs each case through
+the real CLI in-process and classifies it: ``ok`` (exit 0, output reads back), ``clean``
+(exit 2, one ``usdmotion: error:`` line, nothing left) or ``defect``. Prints counts per
+entry point and writes ``benchmarks/results/fuzz.json``. With ``--save`` each distinct
+defect is kept as a reproducer in ``tests/data/malformed/fuzz/`` (file + command in
+``manifest.json``), which ``tests/test_bad_input.py`` replays.
+
+GLB input is fuzzed too (byte-level mutations of a binary glTF); ASF/AMC joins when its
+reader is on main.
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import json
+import random
+import re
+import shutil
+import sys
+import tempfile
+import time
+import warnings
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from _common import print_table, write_results  # noqa: E402
+from fuzz_support import ENTRY_POINTS, MALFORMED, expand, make_seeds, mutate, option_case, run_case  # noqa: E402
+
+#: Relative weight of each entry point (slow ones — JAX, GL — drawn less often).
+WEIGHTS = {"convert_bvh": 6, "convert_bvh_small": 6, "info_bvh": 3, "convert_usda": 6, "convert_usdc": 3,
+           "info_usda": 3, "convert_glb": 4, "jointmap": 1, "segments": 3, "camera": 1, "render_options": 1, "retarget_options": 1}
+FUZZ_DIR = MALFORMED / "fuzz"
+
+
+def _signature(reason: str) -> str:
+    return re.sub(r"\d+|/[^ :]+", "#", reason)[:80]
+
+
+def _save(case_name: str, data: bytes | None, suffix: str, args: list[str], reason: str, seen: set) -> None:
+    key = (case_name, _signature(reason))
+    if key in seen:
+        return
+    seen.add(key)
+    FUZZ_DIR.mkdir(parents=True, exist_ok=True)
+    manifest_path = FUZZ_DIR / "manifest.json"
+    manifest = json.loads(manifest_path.read_text()) if manifest_path.is_file() else []
+    name = f"{case_name}_{len(manifest):03d}{suffix}"
+    if data is not None:
+        (FUZZ_DIR / name).write_bytes(data)
+    manifest.append({"file": name, "entry_point": case_name, "args": args, "found": reason[:200]})
+    manifest_path.write_text(json.dumps(manifest, indent=1) + "\n")
+
+
+def campaign(minutes: float, seed: int, save: bool) -> dict:
+    rng = random.Random(seed)
+    work = Path(tempfile.mkdtemp(prefix="usdmotion-fuzz-"))
+    seeds = make_seeds(work / "seeds")
+    seed_bytes = {kind: path.read_bytes() for kind, path in seeds.items()}
+    counts: dict[str, collections.Counter] = collections.defaultdict(collections.Counter)
+    defects: list[dict] = []
+    seen: set = set()
+    names, weights = zip(*WEIGHTS.items())
+    deadline = time.monotonic() + 60 * minutes
+    started = time.monotonic()
+    n = 0
+    try:
+        while time.monotonic() < deadline:
+            name = rng.choices(names, weights)[0]
+            case_dir = work / f"case{n}"
+            out_dir = case_dir / "out"
+            out_dir.mkdir(parents=True)
+            data, suffix = None, ""
+            if name in ("render_options", "retarget_options"):
+                template = option_case(rng, name.split("_")[0])
+                src = seeds["walk"]
+            else:
+                kind, template = ENTRY_POINTS[name]
+                suffix = seeds[kind].suffix
+                data = mutate(seed_bytes[kind], rng)
+                src = case_dir / f"input{suffix}"
+                src.write_bytes(data)
+            args = expand(template, src, out_dir / "out", seeds["walk"])
+            with warnings.catch_warnings():
+                outcome = run_case(args, out_dir)
+            counts[name][outcome.kind] += 1
+            if outcome.kind == "defect":
+                defects.append({"entry_point": name, "reason": outcome.reason, "args": args})
+                print(f"DEFECT {name}: {outcome.reason}", flush=True)
+                if save:
+                    stored = [a.replace(str(seeds["walk"]), "{walk}").replace(str(src), "{src}")
+                              .replace(str(out_dir / "out"), "{out}") for a in args]
+                    _save(name, data, suffix, stored, outcome.reason, seen)
+            shutil.rmtree(case_dir, ignore_errors=True)
+            n += 1
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    elapsed = time.monotonic() - started
+    return {"minutes": minutes, "seed": seed, "cases": n, "seconds": round(elapsed, 1),
+            "counts": {k: dict(v) for k, v in sorted(counts.items())}, "defects": defects[:200],
+            "distinct_defects": len({(d["entry_point"], _signature(d["reason"])) for d in defects})}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--minutes", type=float, default=1.0)
+    parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--save", action="store_true", help="keep each distinct defect in tests/data/malformed/fuzz")
+    args = parser.parse_args()
+    result = campaign(args.minutes, args.seed, args.save)
+    rows = [[name, sum(c.values()), c.get("ok", 0), c.get("clean", 0), c.get("defect", 0)]
+            for name, c in result["counts"].items()]
+    rows.append(["total", sum(r[1] for r in rows), sum(r[2] for r in rows), sum(r[3] for r in rows),
+                 sum(r[4] for r in rows)])
+    print_table(f"fuzz campaign: {result['cases']} cases in {result['seconds']} s (seed {result['seed']})",
+                ["entry point", "cases", "ok", "clean error", "defect"], rows)
+    print(f"distinct defects: {result['distinct_defects']}")
+    print(f"wrote {write_results('fuzz', result)}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,316 @@
+"""Mutation fuzzing shared by the hypothesis properties (tests/test_fuzz_properties.py) and
+the campaign (benchmarks/fuzz.py): valid seeds, mutators, and the outcome classifier.
+
+An *entry point* is a CLI command line with one user file in it (``{src}``) and where it
+writes (``{out}``). A case runs in-process through :func:`usdmotion.cli.main` with file
+descriptors 1 and 2 captured (USD's C++ diagnostics bypass Python's ``sys.stderr``), and
+is classified:
+
+* ``ok``: exit 0, only ``usdmotion:`` lines on stderr, and a motion output reads back;
+* ``clean``: exit 2, exactly one ``usdmotion: error: ...`` line and nothing else, no
+  traceback, nothing left in the output folder;
+* ``defect``: anything else (exit 1 "internal error", an exception escaping ``main``,
+  a raw library diagnostic, a stray file, exit 0 with an unreadable output, a time-out).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import os
+import random
+import re
+import shutil
+import signal
+import tempfile
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+WALK = REPO / "usdmotion" / "data" / "cmu_12_01_walk.bvh"
+MALFORMED = REPO / "tests" / "data" / "malformed"
+
+#: Numbers an attacker tries first.
+INTERESTING_NUMBERS = ("0", "-0", "1e39", "-1e39", "1e308", "1e400", "nan", "NaN", "inf", "-inf", "Infinity",
+                       "3.4028236e38", "1e-320", "-1", "99999999999999999999", "2147483648", "0x10", "1_0", "",
+                       "1e15", "1e16", "1,5", "+", "-", ".", "e5")
+INTERESTING_TOKENS = ("{", "}", "[", "]", "ROOT", "JOINT", "End Site", "OFFSET", "CHANNELS", "MOTION", "Frames:",
+                      "Frame Time:", '"', "\x00", "\xff", "\u00e9", "def", "over", "(", ")", "=", "@", "</a>",
+                      "null", "true", "{}", "[]", ":", ",", "\n", "\t")
+_NUMPY_WARNING = re.compile(r"encountered in|SVD did not converge|Mean of empty slice|Degrees of freedom")
+_NUMBER = re.compile(rb"-?\d+(?:\.\d*)?(?:[eE][-+]?\d+)?")
+
+
+# --------------------------------------------------------------------------- mutators
+
+
+def mutate(data: bytes, rng: random.Random, rounds: int | None = None) -> bytes:
+    """``data`` with 1–4 random mutations (numbers, tokens, lines, bytes)."""
+    for _ in range(rounds or rng.choice((1, 1, 1, 2, 3))):
+        data = rng.choice(MUTATORS)(data, rng)
+    return data
+
+
+def _replace_number(data: bytes, rng: random.Random) -> bytes:
+    matches = list(_NUMBER.finditer(data[:200_000]))
+    if not matches:
+        return _insert_token(data, rng)
+    m = rng.choice(matches)
+    new = rng.choice(INTERESTING_NUMBERS).encode() if rng.random() < 0.8 else str(rng.uniform(-1e6, 1e6)).encode()
+    return data[:m.start()] + new + data[m.end():]
+
+
+def _lines(data: bytes) -> list[bytes]:
+    return data.split(b"\n")
+
+
+def _delete_line(data: bytes, rng: random.Random) -> bytes:
+    lines = _lines(data)
+    del lines[rng.randrange(len(lines))]
+    return b"\n".join(lines)
+
+
+def _duplicate_line(data: bytes, rng: random.Random) -> bytes:
+    lines = _lines(data)
+    k = rng.randrange(len(lines))
+    lines.insert(k, lines[k])
+    return b"\n".join(lines)
+
+
+def _swap_lines(data: bytes, rng: random.Random) -> bytes:
+    lines = _lines(data)
+    a, b = rng.randrange(len(lines)), rng.randrange(len(lines))
+    lines[a], lines[b] = lines[b], lines[a]
+    return b"\n".join(lines)
+
+
+def _insert_token(data: bytes, rng: random.Random) -> bytes:
+    k = rng.randrange(len(data) + 1)
+    return data[:k] + rng.choice(INTERESTING_TOKENS).encode("utf-8") + data[k:]
+
+
+def _delete_span(data: bytes, rng: random.Random) -> bytes:
+    if not data:
+        return data
+    a = rng.randrange(len(data))
+    return data[:a] + data[a + rng.randint(1, 64):]
+
+
+def _flip_byte(data: bytes, rng: random.Random) -> bytes:
+    if not data:
+        return bytes([rng.randrange(256)])
+    k = rng.randrange(len(data))
+    return data[:k] + bytes([rng.randrange(256)]) + data[k + 1:]
+
+
+def _truncate(data: bytes, rng: random.Random) -> bytes:
+    return data[:rng.randrange(len(data) + 1)]
+
+
+def _repeat_block(data: bytes, rng: random.Random) -> bytes:
+    """Nest or repeat a span many times (deep/huge inputs)."""
+    if not data:
+        return data
+    a = rng.randrange(len(data))
+    span = data[a:a + rng.randint(1, 40)]
+    return data[:a] + span * rng.choice((2, 10, 200, 3000)) + data[a:]
+
+
+MUTATORS = (_replace_number, _replace_number, _delete_line, _duplicate_line, _swap_lines, _insert_token,
+            _delete_span, _flip_byte, _truncate, _repeat_block)
+
+
+# ------------------------------------------------------------------------------- seeds
+
+
+def make_seeds(folder: Path) -> dict[str, Path]:
+    """Valid seed files, written to ``folder``: BVH, USDA, USDC, GLB, joint map, segments JSON,
+    USD camera (from the shipped CMU walk and the malformed corpus's valid base)."""
+    from usdmotion.io import read_motion, write_motion
+
+    folder.mkdir(parents=True, exist_ok=True)
+    walk = read_motion(WALK).sliced(0, 6)  # small seeds: mutations stay fast
+    seeds = {"bvh": write_motion(walk, folder / "walk.bvh"), "usda": write_motion(walk, folder / "walk.usda"),
+             "usdc": write_motion(walk, folder / "walk.usdc"),
+             "walk": write_motion(read_motion(WALK).sliced(0, 120), folder / "walk120.bvh"),
+             "glb": write_motion(walk, folder / "walk.glb")}
+    small = folder / "small.bvh"
+    shutil.copy(MALFORMED / "frames_more_than_rows.bvh", small)  # a valid base with one defect, fixed below
+    text = small.read_text()
+    small.write_text(re.sub(r"Frames: \d+", "Frames: 2", text))
+    seeds["bvh_small"] = small
+    jmap = folder / "map.json"
+    jmap.write_text('{"auto": true, "joints": {"Hips": "Hips", "Head": {"source": "Head", "weight": 2.0}},\n'
+                    ' "weights": {"LeftFoot": 0.5}}\n')
+    seeds["jointmap"] = jmap
+    segments = folder / "walk_segments.json"
+    segments.write_text('{"method": "kcpd", "fps": 120.0, "frames": 120, "cuts": [40, 80],\n'
+                        ' "segments": [{"start": 0, "stop": 40}, {"start": 40, "stop": 80}, '
+                        '{"start": 80, "stop": 120}]}\n')
+    seeds["segments"] = segments
+    camera = folder / "cam.usda"
+    camera.write_text('#usda 1.0\n(\n    metersPerUnit = 1\n    upAxis = "Y"\n)\n\ndef Camera "cam"\n{\n'
+                      '    float focalLength = 35\n    float verticalAperture = 15.2\n'
+                      '    double3 xformOp:translate = (0, 1, 6)\n    uniform token[] xformOpOrder = ["xformOp:translate"]\n'
+                      '    float2 clippingRange = (0.1, 100)\n}\n')
+    seeds["camera"] = camera
+    return seeds
+
+
+#: Entry points: name → (seed kind, argument template). ``{src}`` is the mutated file,
+#: ``{out}`` the output, ``{walk}`` the valid walk seed.
+ENTRY_POINTS = {
+    "convert_bvh": ("bvh", ["convert", "{src}", "{out}.usda", "--no-validate"]),
+    "convert_bvh_small": ("bvh_small", ["convert", "{src}", "{out}.bvh"]),
+    "info_bvh": ("bvh", ["info", "{src}"]),
+    "convert_usda": ("usda", ["convert", "{src}", "{out}.bvh"]),
+    "convert_usdc": ("usdc", ["convert", "{src}", "{out}.bvh"]),
+    "info_usda": ("usda", ["info", "{src}"]),
+    "convert_glb": ("glb", ["convert", "{src}", "{out}.bvh"]),
+    "jointmap": ("jointmap", ["retarget", "{walk}", "{out}.bvh", "--remove", "LThumb", "--map", "{src}",
+                              "--iterations", "1"]),
+    "segments": ("segments", ["segment-eval", "{walk}", "{src}"]),
+    "camera": ("camera", ["render", "{walk}", "{out}.mp4", "--camera", "{src}", "--size", "64x48",
+                          "--frames", "0:2", "--style", "stick"]),
+}
+
+#: Option values tried on render and retarget (the campaign draws one per case).
+RENDER_OPTIONS = {
+    "--size": ["64x48", "0x0", "-16x16", "64x", "x", "100000x100000", "1e3x64", "64x48x2", "nan"],
+    "--frames": ["0:2", "-1:", "5:2", "a:b", ":", "0:99999999999", "1:1", "::", "2"],
+    "--fps": ["30", "0", "-1", "nan", "inf", "1e308", "1e-300"],
+    "--speed": ["1", "0", "-2", "nan", "inf", "1e-300"],
+    "--msaa": ["0", "4", "-1", "3", "1000000"],
+    "--quality": ["20", "-1", "52", "1000"],
+    "--grid-scale": ["1", "0", "-1", "nan", "inf"],
+    "--style": ["stick", "body", "both", "", "x"],
+    "--camera": ["side", "orbit", "nope", "missing.usda", ":/cam", "x.usda:/a"],
+    "--compare-mode": ["ghost", "side", "nope"],
+    "--trace": ["Hips", "com", "Nope", ""],
+}
+RETARGET_OPTIONS = {
+    "--remove": ["LThumb", "Hips", "Nope", "", "LThumb,LThumb"],
+    "--add": ["Tip:Head:0,1,0", "Tip:Nope:0,1,0", "Tip:Head:nan,0,0", "Tip:Head:1e39,0,0", "::", "Tip:Head:0,1"],
+    "--iterations": ["1", "0", "-1", "1e9"],
+    "--scale": ["units", "auto", "0", "-1", "nan", "inf", "x"],
+    "--units": ["cm", "m", "0", "-1", "nan", "inf", "furlong", "1e-300"],
+}
+
+
+def option_case(rng: random.Random, command: str) -> list[str]:
+    """A render or retarget command line with 1–3 fuzzed options."""
+    table = RENDER_OPTIONS if command == "render" else RETARGET_OPTIONS
+    args = (["render", "{walk}", "{out}.mp4", "--size", "64x48", "--frames", "0:2", "--style", "stick"]
+            if command == "render" else ["retarget", "{walk}", "{out}.bvh", "--iterations", "1"])
+    for option in rng.sample(sorted(table), rng.randint(1, 3)):
+        args += [option, rng.choice(table[option])]
+    if command == "retarget" and "--remove" not in args and "--add" not in args:
+        args += ["--remove", "LThumb"]
+    return args
+
+
+# ------------------------------------------------------------------------------ running
+
+
+@dataclasses.dataclass
+class Outcome:
+    kind: str               # "ok", "clean" or "defect"
+    code: int | None
+    stderr: str
+    reason: str = ""
+
+
+class _Timeout(BaseException):
+    pass
+
+
+@contextlib.contextmanager
+def _captured_fds() -> tuple[Path, Path]:
+    """Redirect fds 1 and 2 to temporary files for the block (C++ writes there directly)."""
+    files = [tempfile.TemporaryFile(mode="w+b") for _ in range(2)]
+    saved = [os.dup(1), os.dup(2)]
+    import sys
+
+    sys.stdout.flush()
+    sys.stderr.flush()
+    streams = sys.stdout, sys.stderr  # pytest replaces them by objects that are not fds 1 and 2
+    try:
+        os.dup2(files[0].fileno(), 1)
+        os.dup2(files[1].fileno(), 2)
+        sys.stdout = open(1, "w", buffering=1, closefd=False)  # noqa: SIM115
+        sys.stderr = open(2, "w", buffering=1, closefd=False)  # noqa: SIM115
+        yield files
+    finally:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        sys.stdout, sys.stderr = streams
+        os.dup2(saved[0], 1)
+        os.dup2(saved[1], 2)
+        for fd in saved:
+            os.close(fd)
+
+
+def run_case(args: list[str], out_dir: Path, timeout_s: int = 300) -> Outcome:
+    """Run ``usdmotion ARGS`` in-process and classify the outcome (see the module docstring)."""
+    import sys
+
+    from usdmotion.cli import main
+
+    def on_alarm(signum, frame):
+        raise _Timeout
+
+    previous = signal.signal(signal.SIGALRM, on_alarm)
+    signal.alarm(timeout_s)
+    error = None
+    with _captured_fds() as (out_file, err_file):
+        try:
+            code = main(args)
+        except _Timeout:
+            code, error = None, f"no result after {timeout_s} s"
+        except BaseException as exc:  # noqa: BLE001 - an escaping exception is the defect
+            code, error = None, f"{type(exc).__name__} escaped main: {exc}"
+        finally:
+            signal.alarm(0)
+            signal.signal(signal.SIGALRM, previous)
+        sys.stdout.flush()
+        sys.stderr.flush()
+        err_file.seek(0)
+        stderr = err_file.read().decode("utf-8", "replace")
+    if error:
+        return Outcome("defect", code, stderr, error)
+    return classify(code, stderr, args, out_dir)
+
+
+def classify(code: int, stderr: str, args: list[str], out_dir: Path) -> Outcome:
+    lines = [line for line in stderr.splitlines() if line.strip()]
+    foreign = [line for line in lines if not line.startswith("usdmotion: ")]
+    left = sorted(p.name for p in out_dir.iterdir())
+    if "Traceback" in stderr or foreign:
+        return Outcome("defect", code, stderr, f"foreign output: {(foreign or ['Traceback'])[0][:120]}")
+    leaked = [line for line in lines if _NUMPY_WARNING.search(line)]
+    if leaked:
+        return Outcome("defect", code, stderr, f"NumPy warning leaked: {leaked[0][:120]}")
+    if code == 2:
+        errors = [line for line in lines if line.startswith("usdmotion: error: ")]
+        if len(errors) != 1:
+            return Outcome("defect", code, stderr, f"{len(errors)} error lines")
+        if left:
+            return Outcome("defect", code, stderr, f"left behind: {left}")
+        return Outcome("clean", code, stderr)
+    if code == 0:
+        outputs = [p for p in out_dir.iterdir() if p.suffix in (".bvh", ".usda", ".usdc")]
+        for path in outputs:
+            try:
+                from usdmotion.io import read_motion
+
+                read_motion(path)
+            except Exception as exc:  # noqa: BLE001
+                return Outcome("defect", code, stderr, f"exit 0 but {path.name} does not read back: {exc}")
+        stray = [name for name in left if name.startswith(".")]
+        if stray:
+            return Outcome("defect", code, stderr, f"temporary files left: {stray}")
+        return Outcome("ok", code, stderr)
+    return Outcome("defect", code, stderr, f"exit {code}: {(lines or [''])[-1][:160]}")
+
+
+def expand(args: list[str], src: Path, out: Path, walk: Path) -> list[str]:
+    return [a.replace("{src}", str(src)).replace("{out}", str(out)).replace("{walk}", str(walk)) for a in args]
