@@ -39,7 +39,7 @@ import numpy as np
 
 from usdmotion.errors import UsdMotionWarning, UsdReadError
 from usdmotion.motion import Motion
-from usdmotion.rotations import matrix_to_quat, quat_conjugate, quat_mul, quat_rotate
+from usdmotion.rotations import quat_conjugate, quat_mul, quat_rotate
 
 CUSTOM_KEY = "usdmotion"
 SCALE_TOL = 1e-5        # relative: ancestor scales this close count as uniform
@@ -78,14 +78,20 @@ def choose_skeleton(stage, path: Path, skeleton: str | None = None):
 
 
 def decompose(local: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Column-vector ``(..., 4, 4)`` → ``(rotation wxyz (..., 4), translation (..., 3), scale (..., 3))``.
+    """Column-vector ``(N, 4, 4)`` → ``(rotation wxyz (N, 4), translation (N, 3), scale (N, 3))``:
+    rotation and scale by usd-core's ``UsdSkel.DecomposeTransforms`` (the decomposition
+    UsdSkel itself uses; float32), translation exactly from the matrices."""
+    from pxr import UsdSkel, Vt
 
-    ``scale`` is the column norms of the 3×3 part (no shear assumed; see :func:`uniform_scale`).
-    """
-    linear = local[..., :3, :3]
-    scale = np.linalg.norm(linear, axis=-2)
-    safe = np.where(scale > 0, scale, 1.0)
-    return matrix_to_quat(linear / safe[..., None, :]), local[..., :3, 3], scale
+    matrices = Vt.Matrix4dArray.FromNumpy(np.ascontiguousarray(np.swapaxes(local, -1, -2)))
+    result = UsdSkel.DecomposeTransforms(matrices)
+    if not result:
+        raise ValueError("transforms cannot be decomposed")
+    _, rotations, scales = result
+    xyzw = np.array(rotations, np.float64).reshape(-1, 4)
+    wxyz = np.concatenate([xyzw[:, 3:], xyzw[:, :3]], axis=1)
+    wxyz /= np.linalg.norm(wxyz, axis=1, keepdims=True)
+    return wxyz, local[:, :3, 3].copy(), np.array(scales, np.float64).reshape(-1, 3)
 
 
 def uniform_scale(world: np.ndarray, path: Path, prim) -> np.ndarray:
@@ -140,9 +146,11 @@ def fold_skeleton_transform(world: np.ndarray, rotations: np.ndarray, translatio
     and offset; the rotation and translation apply to the ``roots``. Returns new arrays.
     """
     s = uniform_scale(world, path, prim)
-    q_world = matrix_to_quat(world[:, :3, :3] / s[:, None, None])
-    translations = translations * s[:, None, None]
-    rotations = rotations.copy()
+    if np.allclose(world, np.eye(4), rtol=0, atol=1e-12):
+        return rotations, translations, offsets
+    q_world = decompose(np.ascontiguousarray(world))[0]
+    if not np.all(s == 1.0):
+        translations = translations * s[:, None, None]
     rotations[:, roots] = quat_mul(q_world[:, None], rotations[:, roots])
     translations[:, roots] = world[:, None, :3, 3] + quat_rotate(q_world[:, None], translations[:, roots])
     return rotations, translations, offsets * s[0]
@@ -225,6 +233,8 @@ def read_usd_skeleton(stage, path: Path, skeleton: str | None = None, resample: 
                       "(world positions kept)", UsdMotionWarning, stacklevel=3)
     moving = np.abs(translations[:, 1:] - offsets[None, 1:]).max(initial=0.0) > 1e-5 * max(
         1.0, float(np.abs(offsets).max(initial=0.0)))
+    rotations.setflags(write=False)  # handed over to the Motion without a copy
+    translations.setflags(write=False)
     return Motion(
         joint_names=tuple(str(n) for n in names),
         parents=parents,

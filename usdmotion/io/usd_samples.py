@@ -15,7 +15,6 @@ from pathlib import Path
 import numpy as np
 
 from usdmotion.errors import UsdReadError
-from usdmotion.rotations import xyzw_to_wxyz
 
 SPACING_TOL = 1e-6   # relative: sample spacings this close to the median count as even
 UNIT_TOL = 1e-2      # |‖q‖ - 1| beyond this is a corrupt rotation, not float rounding
@@ -64,11 +63,13 @@ def read_samples(attr, times: np.ndarray, n: int, width: int, path: Path) -> np.
     if attr.GetNumTimeSamples() == 0 or times.size == 0:
         out = _rows(attr.Get(), n, width, path, where, None)
         return np.broadcast_to(out, (max(times.size, 1), n, width))
+    from pxr import Usd
+
     out = np.empty((times.size, n, width), np.float32)
-    t = None
+    query, t = Usd.AttributeQuery(attr), None
     try:
         for i, t in enumerate(times.tolist()):
-            value = attr.Get(t)
+            value = query.Get(t)
             if value is None or len(value) != n:
                 raise UsdReadError(path, f"{where} at time {t:g} has {0 if value is None else len(value)} "
                                          f"values for {n} joints")
@@ -107,11 +108,10 @@ def animation_arrays(anim, tokens: list[str], times: np.ndarray, rest_rotations:
     An animation without rotations or translations, or with arrays whose length is not
     its joint count, non-finite values or rotations far from unit length, is refused.
     """
-    n_frames = max(times.size, 1)
-    rotations = np.broadcast_to(rest_rotations, (n_frames, len(tokens), 4)).copy()
-    translations = np.broadcast_to(rest_translations, (n_frames, len(tokens), 3)).copy()
+    n_frames, n_joints = max(times.size, 1), len(tokens)
     if anim is None:
-        return rotations, translations
+        return (np.broadcast_to(rest_rotations, (n_frames, n_joints, 4)).copy(),
+                np.broadcast_to(rest_translations, (n_frames, n_joints, 3)).copy())
     anim_joints = anim.GetJointsAttr().Get()
     if anim_joints is None or len(anim_joints) == 0:
         raise UsdReadError(path, f"{anim.GetPath()}: the SkelAnimation names no joints")
@@ -120,20 +120,32 @@ def animation_arrays(anim, tokens: list[str], times: np.ndarray, rest_rotations:
     if not pairs:
         raise UsdReadError(path, f"{anim.GetPath()}: none of its joints is a joint of the skeleton")
     src, dst = (np.array(x, np.int64) for x in zip(*pairs))
+    same_order = len(pairs) == n_joints == len(anim_joints) and np.array_equal(src, dst)
     for attr, name in ((anim.GetRotationsAttr(), "rotations"), (anim.GetTranslationsAttr(), "translations")):
         if not attr.HasValue():
             raise UsdReadError(path, f"{anim.GetPath()}: the SkelAnimation has no {name} "
                                      "(usd-core would show the rest pose)")
-    quats = read_samples(anim.GetRotationsAttr(), times, len(anim_joints), 4, path)[:, src].astype(np.float64)
-    norms = np.linalg.norm(quats, axis=-1)
+    quats = read_samples(anim.GetRotationsAttr(), times, len(anim_joints), 4, path)
+    quats = quats if same_order else quats[:, src]
+    norms = np.sqrt(np.einsum("...i,...i->...", quats, quats, dtype=np.float64))
     bad = np.abs(norms - 1.0) > UNIT_TOL
     if bad.any():
         f, j = np.argwhere(bad)[0]
         at = f" at time {times[f]:g}" if times.size else ""
         raise UsdReadError(path, f"{anim.GetRotationsAttr().GetPath()}{at}: rotation of joint "
                                  f"{anim_joints[int(src[j])]} has length {norms[f, j]:.6g}, not a unit quaternion")
-    rotations[:, dst] = xyzw_to_wxyz(quats / norms[..., None])
-    translations[:, dst] = read_samples(anim.GetTranslationsAttr(), times, len(anim_joints), 3, path)[:, src]
+    wxyz = np.empty(quats.shape, np.float64)  # (x, y, z, w) → (w, x, y, z) in one pass
+    wxyz[..., 0], wxyz[..., 1:] = quats[..., 3], quats[..., :3]
+    if np.abs(norms - 1.0).max(initial=0.0) > 1e-6:
+        wxyz /= norms[..., None]
+    shifts = read_samples(anim.GetTranslationsAttr(), times, len(anim_joints), 3, path)
+    if same_order:
+        rotations, translations = wxyz, shifts.astype(np.float64)
+    else:
+        rotations = np.broadcast_to(rest_rotations, (n_frames, n_joints, 4)).copy()
+        translations = np.broadcast_to(rest_translations, (n_frames, n_joints, 3)).copy()
+        rotations[:, dst] = wxyz
+        translations[:, dst] = shifts[:, src]
     _check_scales(anim, times, len(anim_joints), path)
     return rotations, translations
 
