@@ -18,15 +18,18 @@ class RootOffsetChoice(str, Enum):
 class UpAxisChoice(str, Enum):
     Y = "Y"
     Z = "Z"
+    auto = "auto"
 
 
 InputPath = Annotated[Path, typer.Argument(help="Input motion: .bvh, .usd, .usda, .usdc or .usdz.",
                                            show_default=False)]
 Units = Annotated[str | None, typer.Option(
     "--units", help="Length unit of a BVH file: cm, m, mm, in, ft, asf (CMU, 1/0.45 in), or metres per "
-                    "unit as a number. Default: cm for BVH; the stage's for USD.", show_default=False)]
+                    "unit as a number, or auto (guessed from the body, reason given; see docs/units_guess.md). "
+                    "Default: cm for BVH; the stage's for USD.", show_default=False)]
 UpAxis = Annotated[UpAxisChoice | None, typer.Option(
-    "--up-axis", help="Vertical axis of a BVH file (default Y); overrides a USD stage's.", show_default=False,
+    "--up-axis", help="Vertical axis of a BVH file (default Y), or auto (guessed from the body); overrides a "
+                      "USD stage's.", show_default=False,
     case_sensitive=False)]
 RootOffset = Annotated[RootOffsetChoice, typer.Option(
     "--root-offset", help="BVH root OFFSET: 'add' to the root position channels (BVH spec), 'replace' by "

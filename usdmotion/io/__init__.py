@@ -25,33 +25,47 @@ def _kind(path: Path) -> str | None:
     return None
 
 
+def _is_auto(value) -> bool:
+    return isinstance(value, str) and value.strip().lower() == "auto"
+
+
 def read_motion(path: str | os.PathLike, root_offset: str = "auto", units: str | float | None = None,
-                up_axis: str | None = None, lenient: bool = False, ignore_joint_positions: bool = False) -> Motion:
+                up_axis: str | None = None, lenient: bool = False, ignore_joint_positions: bool = False,
+                skeleton: str | None = None, resample: bool = False) -> Motion:
     """Read a BVH or UsdSkel file.
 
     For BVH, ``units`` (default ``"cm"``) and ``up_axis`` (default ``"Y"``) state what the
-    file does not; for USD they come from the stage and, if given, override it.
+    file does not; ``"auto"`` guesses them from the body (:mod:`usdmotion.units_guess`,
+    with a warning giving the reason). For USD they come from the stage and, if given
+    (not ``"auto"``), override it; ``skeleton`` picks the Skeleton prim of a stage with
+    several and ``resample`` reads unevenly spaced time samples at even steps. Either
+    way a human skeleton whose height in the chosen units is outside 0.5–3 m warns.
     """
     import dataclasses
+
+    from usdmotion.units_guess import apply_body_guess
 
     path = Path(path)
     kind = _kind(path)
     if kind == "bvh":
         from usdmotion.io.bvh import read_bvh
 
-        return read_bvh(path, root_offset=root_offset, units="cm" if units is None else units,
-                        up_axis=up_axis or "Y", lenient=lenient, ignore_joint_positions=ignore_joint_positions)
+        motion = read_bvh(path, root_offset=root_offset, units="cm" if units is None or _is_auto(units) else units,
+                          up_axis="Y" if up_axis is None or _is_auto(up_axis) else up_axis, lenient=lenient,
+                          ignore_joint_positions=ignore_joint_positions)
+        return apply_body_guess(motion, path, _is_auto(units), _is_auto(up_axis))
     if kind == "usd":
         from usdmotion.io.bvh import resolve_units
         from usdmotion.io.usd import read_usd
 
-        motion = read_usd(path)
+        motion = read_usd(path, skeleton=skeleton, resample=resample)
         changes = {}
-        if units is not None:
+        if units is not None and not _is_auto(units):
             changes["meters_per_unit"] = resolve_units(units)
-        if up_axis is not None:
+        if up_axis is not None and not _is_auto(up_axis):
             changes["up_axis"] = up_axis
-        return dataclasses.replace(motion, **changes) if changes else motion
+        motion = dataclasses.replace(motion, **changes) if changes else motion
+        return apply_body_guess(motion, path, False, False)
     raise InputError(path, f"unknown input format {path.suffix!r} (use .bvh, {', '.join(USD_EXTENSIONS)})")
 
 

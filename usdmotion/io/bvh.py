@@ -31,7 +31,7 @@ import numpy as np
 from usdmotion.constants import MAX_FRAMES, METERS_PER_UNIT
 from usdmotion.errors import BvhParseError, UsdMotionWarning
 from usdmotion.io.atomic import atomic_output
-from usdmotion.io.bvh_header import BvhHeader, frame_rate, header_arrays, parse_header
+from usdmotion.io.bvh_header import BvhHeader, frame_rate, frame_time_text, header_arrays, parse_header
 from usdmotion.io.bvh_rows import line_of_row, parse_rows
 from usdmotion.motion import POSITION_CHANNELS, ROTATION_CHANNELS, Motion, RootOffset
 from usdmotion.parallel import over_slices
@@ -516,7 +516,7 @@ def bvh_text(motion: Motion, decimals: int = 9) -> str:
         open_stack.pop()
         lines.append("  " * len(open_stack) + "}")
     values = channel_values(motion, channels)[:, column_order]
-    lines += ["MOTION", f"Frames: {motion.n_frames}", f"Frame Time: {1.0 / motion.fps:.10g}"]
+    lines += ["MOTION", f"Frames: {motion.n_frames}", f"Frame Time: {frame_time_text(motion.fps)}"]
     return "\n".join(lines) + "\n" + _rows_text(np.round(values, decimals) + 0.0)
 
 
