@@ -228,3 +228,24 @@ def test_broken_animation_arrays_are_refused_naming_file_prim_and_time(tmp_path,
     with pytest.raises(UsdReadError, match=message) as err:
         read_usd(path)
     assert str(err.value).startswith(str(path))
+
+
+# ------------------------------------------------------------------ 3 (not yet carried): said, not silent
+
+
+def test_a_skinned_mesh_that_is_not_carried_over_is_named_in_a_warning(tmp_path):
+    path = tmp_path / "skinned.usda"
+    stage = _new_stage(path)
+    UsdSkel.Root.Define(stage, "/Char")
+    skel = author_skeleton(stage, "/Char/Skel")
+    mesh = UsdGeom.Mesh.Define(stage, "/Char/Body")
+    mesh.CreatePointsAttr(Vt.Vec3fArray([Gf.Vec3f(0, 0, 0), Gf.Vec3f(0, 1, 0), Gf.Vec3f(1, 0, 0)]))
+    mesh.CreateFaceVertexCountsAttr(Vt.IntArray([3]))
+    mesh.CreateFaceVertexIndicesAttr(Vt.IntArray([0, 1, 2]))
+    binding = UsdSkel.BindingAPI.Apply(mesh.GetPrim())
+    binding.CreateSkeletonRel().SetTargets([skel.GetPath()])
+    binding.CreateJointIndicesPrimvar(True, 1).Set(Vt.IntArray([0]))
+    binding.CreateJointWeightsPrimvar(True, 1).Set(Vt.FloatArray([1.0]))
+    stage.GetRootLayer().Save()
+    with pytest.warns(UserWarning, match=r"its skinned geometry \(/Char/Body\) is not read and is not carried"):
+        read_usd(path)
