@@ -1,0 +1,66 @@
+"""Reading what Blender 4.5's USD exporter writes (issue 15 item 1, must-show 1).
+
+One Blender subprocess (``tests/blender/dcc_export.py``) builds an animated armature
+the way an artist does (object scaled, rotated and moved) and exports it with
+``convert_scene_units`` (a scaled ``/root`` Xform above the armature, time-sampled
+object transforms). usdmotion's joint positions must equal usd-core's
+``ComputeJointWorldTransforms`` (≤ 1e-5 × height) and, in metres, Blender's own
+evaluated bone heads (≤ 1e-5 × height: Blender keeps float32).
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+
+import numpy as np
+import pytest
+from test_blender import blender_python, clean_env
+from usd_dcc_stages import positions_by_name, usd_core_positions
+
+from conftest import REPO
+from usdmotion.io.usd import read_usd
+
+pytestmark = pytest.mark.blender
+EXPORT = REPO / "tests" / "blender" / "dcc_export.py"
+TOL = 1e-5  # × height
+CASES = [
+    {"name": "cm_scaled_rotated", "units": "CENTIMETERS", "scale": 1.5, "rotation_deg": [0, 0, 30],
+     "location": [1.0, 2.0, 0.0]},
+    {"name": "inches_half_size", "units": "INCHES", "scale": 0.5, "rotation_deg": [90, 0, 45],
+     "location": [0.0, -1.0, 0.5]},
+    {"name": "metres_plain", "units": "METERS", "scale": 1.0, "rotation_deg": [0, 0, 0], "location": [0, 0, 0]},
+]
+
+
+@pytest.fixture(scope="module")
+def exported(tmp_path_factory):
+    python = blender_python()
+    tmp = tmp_path_factory.mktemp("blender_dcc")
+    (tmp / "cases.json").write_text(json.dumps(CASES))
+    run = subprocess.run([str(python), str(EXPORT), str(tmp), str(tmp / "cases.json")], capture_output=True,
+                         text=True, timeout=600, env=clean_env())
+    line = next((x for x in run.stdout.splitlines() if x.startswith("JSON:")), None)
+    assert run.returncode == 0 and line, f"Blender export failed ({run.returncode}): {run.stderr[-2000:]}"
+    return json.loads(line[5:])
+
+
+@pytest.mark.parametrize("case", CASES, ids=[c["name"] for c in CASES])
+def test_blender_export_reads_as_usd_core_and_blender_see_it(exported, case):
+    from pxr import Usd, UsdSkel
+
+    entry = exported[case["name"]]
+    motion = read_usd(entry["file"])
+    stage = Usd.Stage.Open(entry["file"])
+    skel = next(UsdSkel.Skeleton(p) for p in stage.Traverse() if p.IsA(UsdSkel.Skeleton))
+    times = UsdSkel.Cache().GetSkelQuery(skel).GetAnimQuery().GetJointTransformTimeSamples()
+    assert motion.n_frames == entry["frames"] == len(times) and motion.fps == pytest.approx(entry["fps"])
+
+    names, expected = usd_core_positions(entry["file"], str(skel.GetPath()), times)
+    got = positions_by_name(motion, names)
+    height = float(np.ptp(expected[0], axis=0).max())
+    assert np.abs(got - expected).max() <= TOL * height
+
+    blender = np.stack([np.asarray(entry["heads"][n]) for n in names], axis=1)  # (F, J, 3) metres
+    metres = got * motion.meters_per_unit
+    assert np.abs(metres - blender).max() <= TOL * float(np.ptp(blender[0], axis=0).max())
