@@ -230,22 +230,140 @@ def test_broken_animation_arrays_are_refused_naming_file_prim_and_time(tmp_path,
     assert str(err.value).startswith(str(path))
 
 
-# ------------------------------------------------------------------ 3 (not yet carried): said, not silent
+# ------------------------------------------------------------------ 3: skinned meshes carried
 
 
-def test_a_skinned_mesh_that_is_not_carried_over_is_named_in_a_warning(tmp_path):
-    path = tmp_path / "skinned.usda"
+def _skinned_stage(path):
+    """A skinned quad strip with normals, UVs, a colour and a blend shape, bound to a
+    skeleton under a scaled, rotated, moved Xform, with a non-identity geomBindTransform."""
     stage = _new_stage(path)
     UsdSkel.Root.Define(stage, "/Char")
-    skel = author_skeleton(stage, "/Char/Skel")
+    arm = UsdGeom.Xform.Define(stage, "/Char/Arm")
+    arm.AddTranslateOp().Set(Gf.Vec3d(0.5, 0, 2))
+    arm.AddRotateYOp().Set(35.0)
+    arm.AddScaleOp().Set(Gf.Vec3f(100, 100, 100))
+    skel = author_skeleton(stage, "/Char/Arm/Skel")
+    rest = np.array(skel.GetRestTransformsAttr().Get())
+    world = {}
+    for j, token in enumerate(JOINTS):  # bind = rest world (row-vector)
+        parent = token.rsplit("/", 1)[0] if "/" in token else None
+        world[token] = rest[j] @ world[parent] if parent else rest[j]
+    skel.GetBindTransformsAttr().Set(Vt.Matrix4dArray.FromNumpy(np.stack([world[t] for t in JOINTS])))
+    geom_bind = Gf.Matrix4d().SetTranslate(Gf.Vec3d(0.01, -0.02, 0.03))
+    rng = np.random.default_rng(3)
+    points = np.concatenate([rng.uniform(-0.2, 0.2, (12, 3)) + [0, y, 0] for y in (0.3, 1.0, 1.5)])
     mesh = UsdGeom.Mesh.Define(stage, "/Char/Body")
-    mesh.CreatePointsAttr(Vt.Vec3fArray([Gf.Vec3f(0, 0, 0), Gf.Vec3f(0, 1, 0), Gf.Vec3f(1, 0, 0)]))
-    mesh.CreateFaceVertexCountsAttr(Vt.IntArray([3]))
-    mesh.CreateFaceVertexIndicesAttr(Vt.IntArray([0, 1, 2]))
+    mesh.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(points.astype(np.float32)))
+    mesh.CreateFaceVertexCountsAttr(Vt.IntArray([3] * 12))
+    mesh.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(np.arange(36, dtype=np.int32)))
+    mesh.CreateNormalsAttr(Vt.Vec3fArray.FromNumpy(np.tile(np.float32([0, 0, 1]), (36, 1))))
+    mesh.SetNormalsInterpolation(UsdGeom.Tokens.vertex)
+    UsdGeom.PrimvarsAPI(mesh).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.vertex).Set(
+        Vt.Vec2fArray.FromNumpy(rng.uniform(0, 1, (36, 2)).astype(np.float32)))
+    mesh.CreateDisplayColorPrimvar(UsdGeom.Tokens.constant).Set(Vt.Vec3fArray([Gf.Vec3f(0.2, 0.4, 0.6)]))
     binding = UsdSkel.BindingAPI.Apply(mesh.GetPrim())
     binding.CreateSkeletonRel().SetTargets([skel.GetPath()])
-    binding.CreateJointIndicesPrimvar(True, 1).Set(Vt.IntArray([0]))
-    binding.CreateJointWeightsPrimvar(True, 1).Set(Vt.FloatArray([1.0]))
+    binding.CreateJointsAttr(Vt.TokenArray([JOINTS[6], JOINTS[0], JOINTS[3]]))  # the mesh's own joint order
+    indices = rng.integers(0, 3, (36, 2)).astype(np.int32)
+    weights = rng.uniform(0.1, 1, (36, 2)).astype(np.float32)
+    binding.CreateJointIndicesPrimvar(False, 2).Set(Vt.IntArray.FromNumpy(indices.reshape(-1)))
+    binding.CreateJointWeightsPrimvar(False, 2).Set(Vt.FloatArray.FromNumpy((weights / weights.sum(1, keepdims=True))
+                                                                            .reshape(-1)))
+    binding.CreateGeomBindTransformAttr(geom_bind)
+    smile = UsdSkel.BlendShape.Define(stage, "/Char/Body/smile")
+    smile.CreateOffsetsAttr(Vt.Vec3fArray([Gf.Vec3f(0, 0.01, 0), Gf.Vec3f(0.02, 0, 0)]))
+    smile.CreatePointIndicesAttr(Vt.IntArray([4, 7]))
+    binding.CreateBlendShapesAttr(Vt.TokenArray(["smile"]))
+    binding.CreateBlendShapeTargetsRel().SetTargets([smile.GetPath()])
     stage.GetRootLayer().Save()
-    with pytest.warns(UserWarning, match=r"its skinned geometry \(/Char/Body\) is not read and is not carried"):
-        read_usd(path)
+    return path
+
+
+def usd_core_skinned_world(path, times):
+    """World positions ``(T, V, 3)`` of every skinned mesh's points by usd-core, by mesh name."""
+    from pxr import Usd, UsdGeom, UsdSkel
+
+    stage = Usd.Stage.Open(str(path))
+    out = {}
+    for root in (p for p in stage.Traverse() if p.IsA(UsdSkel.Root)):
+        cache = UsdSkel.Cache()
+        cache.Populate(UsdSkel.Root(root), Usd.PrimDefaultPredicate)
+        for binding in cache.ComputeSkelBindings(UsdSkel.Root(root), Usd.PrimDefaultPredicate):
+            skel_query = cache.GetSkelQuery(binding.GetSkeleton())
+            for query in binding.GetSkinningTargets():
+                frames = []
+                for t in times:
+                    skinned = Vt.Vec3fArray(UsdGeom.Mesh(query.GetPrim()).GetPointsAttr().Get(t))
+                    assert query.ComputeSkinnedPoints(skel_query.ComputeSkinningTransforms(t), skinned, t)
+                    skel_world = np.array(UsdGeom.XformCache(t).GetLocalToWorldTransform(binding.GetSkeleton().GetPrim()))
+                    homog = np.concatenate([np.array(skinned, np.float64), np.ones((len(skinned), 1))], axis=1)
+                    frames.append((homog @ skel_world)[:, :3])
+                out[query.GetPrim().GetName()] = np.asarray(frames)
+    return out
+
+
+@pytest.mark.parametrize("ext", [".usda", ".usdc"])
+def test_skinned_meshes_are_carried_through_convert_and_trim(tmp_path, ext):
+    from usdmotion.io import write_motion
+
+    source = _skinned_stage(tmp_path / "skinned.usda")
+    motion = read_motion(source)
+    assert [m.name for m in motion.meshes] == ["Body"]
+    expected = usd_core_skinned_world(source, range(10))["Body"]
+    height = float(np.ptp(expected.reshape(-1, 3), axis=0).max())
+
+    out = write_motion(motion, tmp_path / f"out{ext}")
+    got = usd_core_skinned_world(out, range(10))["Body"]
+    assert np.abs(got - expected).max() <= POSITION_TOL * height
+
+    clip = write_motion(motion.sliced(3, 8), tmp_path / f"clip{ext}")  # what trim does
+    got = usd_core_skinned_world(clip, range(5))["Body"]
+    assert np.abs(got - expected[3:8]).max() <= POSITION_TOL * height
+
+    stage = Usd.Stage.Open(str(out))
+    body = UsdGeom.Mesh(stage.GetPrimAtPath(f"/out/Body"))
+    assert np.allclose(np.array(body.GetDisplayColorPrimvar().Get())[0], [0.2, 0.4, 0.6])
+    src = Usd.Stage.Open(str(source))
+    src_st = UsdGeom.PrimvarsAPI(src.GetPrimAtPath("/Char/Body")).GetPrimvar("st").Get()
+    assert np.array_equal(np.array(UsdGeom.PrimvarsAPI(body).GetPrimvar("st").Get()), np.array(src_st))
+    assert len(body.GetFaceVertexIndicesAttr().Get()) == 36
+    shape = UsdSkel.BlendShape(stage.GetPrimAtPath("/out/Body/smile"))
+    linear = (np.array(Gf.Matrix4d().SetTranslate(Gf.Vec3d(0.01, -0.02, 0.03)))
+              @ np.array(UsdGeom.XformCache(0).GetLocalToWorldTransform(src.GetPrimAtPath("/Char/Arm/Skel"))))[:3, :3]
+    assert np.allclose(np.array(shape.GetOffsetsAttr().Get()), np.array([[0, 0.01, 0], [0.02, 0, 0]]) @ linear,
+                       atol=1e-5)
+    assert list(shape.GetPointIndicesAttr().Get()) == [4, 7]
+
+
+def test_a_mesh_whose_skeleton_changed_is_left_out_with_a_warning(tmp_path):
+    import dataclasses
+
+    from usdmotion.io import write_motion
+
+    motion = read_motion(_skinned_stage(tmp_path / "skinned.usda"))
+    longer = dataclasses.replace(motion, offsets=motion.offsets * 1.1)  # e.g. a retarget to another body
+    with pytest.warns(UserWarning, match="skinned mesh Body left out: the skeleton's rest offsets changed"):
+        out = write_motion(longer, tmp_path / "out.usda")
+    assert not Usd.Stage.Open(str(out)).GetPrimAtPath("/out/Body")
+
+
+def test_our_own_mesh_output_keeps_its_body_and_bvh_output_says_it_drops_it(tmp_path):
+    from usdmotion.io import write_motion
+    from usdmotion.io.usd_mesh import body_decorator
+    from usdmotion.skin import build_body
+
+    motion = read_motion(_skinned_stage(tmp_path / "skinned.usda"))
+    plain = dataclasses_replace(motion, meshes=())
+    first = write_motion(plain, tmp_path / "first.usdc", decorate=body_decorator(build_body(plain)))
+    expected = usd_core_skinned_world(first, range(10))["Body"]
+    again = write_motion(read_motion(first), tmp_path / "again.usda")
+    got = usd_core_skinned_world(again, range(10))["Body"]
+    assert np.abs(got - expected).max() <= POSITION_TOL * float(np.ptp(expected.reshape(-1, 3), axis=0).max())
+    with pytest.warns(UserWarning, match=r"skinned meshes \(Body\) are not written: BVH holds no geometry"):
+        write_motion(read_motion(first), tmp_path / "again.bvh")
+
+
+def dataclasses_replace(motion, **changes):
+    import dataclasses
+
+    return dataclasses.replace(motion, **changes)

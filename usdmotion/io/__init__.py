@@ -76,6 +76,14 @@ def write_motion(motion: Motion, path: str | os.PathLike, **options) -> Path:
     if kind == "bvh":
         from usdmotion.io.bvh import write_bvh
 
+        if motion.meshes:
+            import warnings
+
+            from usdmotion.errors import UsdMotionWarning
+
+            warnings.warn(f"{path}: the skinned meshes ({', '.join(m.name for m in motion.meshes)}) are not written: "
+                          "BVH holds no geometry (write .usd/.usda/.usdc/.usdz to keep them)", UsdMotionWarning,
+                          stacklevel=2)
         return write_bvh(motion, path, **{k: v for k, v in options.items() if k in ("decimals",)})
     if kind == "usd":
         from usdmotion.io.usd import write_usd

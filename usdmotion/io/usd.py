@@ -163,6 +163,10 @@ def write_usd(motion: Motion, path: str | os.PathLike, name: str | None = None,
         try:
             stage = Usd.Stage.CreateNew(str(layer_path))
             skel = define_skeleton(stage, motion, root_path)
+            if motion.meshes:
+                from usdmotion.io.usd_skin import add_skinned_meshes
+
+                add_skinned_meshes(stage, skel, motion, path)
             if decorate is not None:
                 decorate(stage, skel)
             stage.GetRootLayer().Save()

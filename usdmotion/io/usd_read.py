@@ -77,20 +77,6 @@ def choose_skeleton(stage, path: Path, skeleton: str | None = None):
     return UsdSkel.Skeleton(stage.GetPrimAtPath(matches[0]))
 
 
-def bound_meshes(skel) -> list[str]:
-    """Prim paths of the skinned geometry bound to ``skel`` (``UsdSkel.Cache`` bindings
-    under its SkelRoot)."""
-    from pxr import Usd, UsdSkel
-
-    root = UsdSkel.Root.Find(skel.GetPrim())
-    if not root:
-        return []
-    cache = UsdSkel.Cache()
-    cache.Populate(root, Usd.PrimDefaultPredicate)
-    return [str(target.GetPrim().GetPath()) for binding in cache.ComputeSkelBindings(root, Usd.PrimDefaultPredicate)
-            if binding.GetSkeleton().GetPrim() == skel.GetPrim() for target in binding.GetSkinningTargets()]
-
-
 def decompose(local: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Column-vector ``(N, 4, 4)`` → ``(rotation wxyz (N, 4), translation (N, 3), scale (N, 3))``:
     rotation and scale by usd-core's ``UsdSkel.DecomposeTransforms`` (the decomposition
@@ -245,17 +231,14 @@ def read_usd_skeleton(stage, path: Path, skeleton: str | None = None, resample: 
         warnings.warn(f"{path}: skeleton {where} has {roots.size} root joints; {names[0]} is the root and "
                       f"{', '.join(str(n) for n in names[1:][parents[1:] == 0][:5])}… become its children "
                       "(world positions kept)", UsdMotionWarning, stacklevel=3)
-    meshes = bound_meshes(skel)
-    if meshes:
-        warnings.warn(f"{path}: reading the motion of {where} only: its skinned geometry ({', '.join(meshes[:3])}"
-                      f"{'…' if len(meshes) > 3 else ''}) is not read and is not carried into outputs",
-                      UsdMotionWarning, stacklevel=3)
+    names = tuple(str(n) for n in names)
+    meshes = _meshes(skel, query, tokens, names, order if roots.size > 1 else None, offsets, times)
     moving = np.abs(translations[:, 1:] - offsets[None, 1:]).max(initial=0.0) > 1e-5 * max(
         1.0, float(np.abs(offsets).max(initial=0.0)))
     rotations.setflags(write=False)  # handed over to the Motion without a copy
     translations.setflags(write=False)
     return Motion(
-        joint_names=tuple(str(n) for n in names),
+        joint_names=names,
         parents=parents,
         offsets=offsets,
         rotations=rotations,
@@ -267,7 +250,17 @@ def read_usd_skeleton(stage, path: Path, skeleton: str | None = None, resample: 
         up_axis="Z" if UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.z else "Y",
         channels=channels,
         root_offset="add" if custom.get("rootOffset") == "add" else "replace",
+        meshes=meshes,
     )
+
+
+def _meshes(skel, query, tokens, names, order, offsets, times):
+    """The skinned meshes bound to ``skel`` in the Motion's space (:mod:`usdmotion.io.usd_skin`)."""
+    from usdmotion.io.usd_skin import read_skinned_meshes
+
+    by_token = dict(zip([tokens[i] for i in order] if order is not None else tokens, names))
+    ancestor_row = skeleton_world(skel, times[:1])[0].T
+    return read_skinned_meshes(skel, query, by_token, dict(zip(names, offsets)), ancestor_row)
 
 
 def rest_transforms(skel, n_joints: int, path: Path) -> np.ndarray:
