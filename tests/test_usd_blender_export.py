@@ -30,6 +30,8 @@ CASES = [
     {"name": "inches_half_size", "units": "INCHES", "scale": 0.5, "rotation_deg": [90, 0, 45],
      "location": [0.0, -1.0, 0.5]},
     {"name": "metres_plain", "units": "METERS", "scale": 1.0, "rotation_deg": [0, 0, 0], "location": [0, 0, 0]},
+    {"name": "skinned_shape_keys", "units": "CENTIMETERS", "scale": 1.2, "rotation_deg": [0, 0, 20],
+     "location": [1.0, 0.0, 0.0], "mesh": True},
 ]
 
 
@@ -64,3 +66,28 @@ def test_blender_export_reads_as_usd_core_and_blender_see_it(exported, case):
     blender = np.stack([np.asarray(entry["heads"][n]) for n in names], axis=1)  # (F, J, 3) metres
     metres = got * motion.meters_per_unit
     assert np.abs(metres - blender).max() <= TOL * float(np.ptp(blender[0], axis=0).max())
+
+
+def test_blender_skinned_character_with_shape_keys_is_carried_to_the_output(exported, tmp_path):
+    from pxr import Usd, UsdSkel
+    from test_usd_dcc import usd_core_skinned_world
+
+    from usdmotion.io import read_motion, write_motion
+
+    entry = exported["skinned_shape_keys"]
+    motion = read_motion(entry["file"])
+    assert [m.name for m in motion.meshes] == ["Body"] and [b.name for b in motion.meshes[0].blend_shapes] == ["Smile"]
+    stage = Usd.Stage.Open(entry["file"])
+    skel = next(UsdSkel.Skeleton(p) for p in stage.Traverse() if p.IsA(UsdSkel.Skeleton))
+    times = UsdSkel.Cache().GetSkelQuery(skel).GetAnimQuery().GetJointTransformTimeSamples()
+    expected = usd_core_skinned_world(entry["file"], times)["Body"]
+    with pytest.warns(UserWarning, match="blend shapes are kept but their animated weights are not"):
+        out = write_motion(motion, tmp_path / "carried.usdc")
+    got = usd_core_skinned_world(out, range(len(times)))["Body"]
+    assert np.abs(got - expected).max() <= TOL * float(np.ptp(expected.reshape(-1, 3), axis=0).max())
+    written = Usd.Stage.Open(str(out))
+    shape = UsdSkel.BlendShape(written.GetPrimAtPath("/carried/Body/Smile"))
+    offsets = np.array(shape.GetOffsetsAttr().Get()) * motion.meters_per_unit  # metres, world
+    moved = np.linalg.norm(offsets, axis=1) > 1e-9
+    assert moved.sum() == 8  # the 8 points the shape key moved by 5 cm in the mesh, × the object's 1.2
+    assert np.allclose(offsets[moved], [0, 0, 0.05 * 1.2], atol=1e-6)

@@ -4,7 +4,7 @@ and export it with Blender's own USD exporter; print one JSON document.
     python dcc_export.py OUT_DIR CASES_JSON
 
 Each case: ``{"name", "units" (convert_scene_units), "scale", "rotation_deg" (XYZ Euler of
-the armature object), "location"}``. Writes ``OUT_DIR/<name>.usda`` and reports, per
+the armature object), "location", "mesh" (optional: a skinned body with an animated shape key)}``. Writes ``OUT_DIR/<name>.usda`` and reports, per
 case, Blender's evaluated bone head positions in world space (metres, Blender Z-up)
 for every frame: ``{"<name>": {"file", "fps", "frames", "heads": {bone: [[x, y, z], ...]}}}``.
 """
@@ -60,6 +60,42 @@ def build(case):
     return arm
 
 
+def add_skinned_body(arm):
+    """A mesh of boxes along the bones, parented to ``arm`` with an Armature modifier, one
+    vertex group per bone (blended near joints), and a 'Smile' shape key animated 0 → 1."""
+    verts, faces, groups = [], [], []
+    for b, (name, parent, head, tail) in enumerate(BONES):
+        for t in (0.0, 0.5, 1.0):
+            c = [h + t * (e - h) for h, e in zip(head, tail)]
+            base = len(verts)
+            verts += [(c[0] + dx, c[1] + dy, c[2]) for dx in (-0.04, 0.04) for dy in (-0.04, 0.04)]
+            groups += [(name, parent, t)] * 4
+            if t > 0:
+                faces += [(base - 4, base - 3, base + 1, base), (base - 2, base - 1, base + 3, base + 2)]
+    data = bpy.data.meshes.new("Body")
+    data.from_pydata(verts, [], faces)
+    body = bpy.data.objects.new("Body", data)
+    bpy.context.scene.collection.objects.link(body)
+    body.parent = arm
+    body.modifiers.new("Armature", "ARMATURE").object = arm
+    for name, *_ in BONES:
+        body.vertex_groups.new(name=name)
+    for v, (name, parent, t) in enumerate(groups):
+        if parent and t == 0.0:
+            body.vertex_groups[name].add([v], 0.6, "REPLACE")
+            body.vertex_groups[parent].add([v], 0.4, "REPLACE")
+        else:
+            body.vertex_groups[name].add([v], 1.0, "REPLACE")
+    body.shape_key_add(name="Basis")
+    smile = body.shape_key_add(name="Smile")
+    for point in smile.data[:8]:
+        point.co.z += 0.05
+    for k, frame in enumerate(FRAMES):
+        smile.value = k / (len(FRAMES) - 1)
+        smile.keyframe_insert("value", frame=frame)
+    return body
+
+
 def heads(arm):
     out = {b.name: [] for b in arm.pose.bones}
     for frame in FRAMES:
@@ -75,6 +111,8 @@ def main():
     report = {}
     for case in cases:
         arm = build(case)
+        if case.get("mesh"):
+            add_skinned_body(arm)
         path = out_dir / f"{case['name']}.usda"
         bpy.ops.wm.usd_export(filepath=str(path), export_animation=True, export_armatures=True,
                               convert_scene_units=case["units"], selected_objects_only=False)
