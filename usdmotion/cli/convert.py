@@ -9,7 +9,7 @@ from typing import Annotated
 import typer
 
 from usdmotion.cli._options import (IgnoreJointPositions, InputPath, Lenient, RootOffset, RootOffsetChoice, UpAxis,
-                                    Units, read_input)
+                                    UpAxisChoice, Units, read_input)
 from usdmotion.cli.app import app
 
 
@@ -25,6 +25,9 @@ def convert(
     validate: Annotated[bool, typer.Option(help="Run pxr.UsdValidation on a USD output.")] = True,
     mesh: Annotated[bool, typer.Option("--mesh", help="Add a volumetric body Mesh skinned to the Skeleton "
                                                       "(USD output only).")] = False,
+    to_up_axis: Annotated[UpAxisChoice | None, typer.Option(
+        "--to-up-axis", help="Turn the output to this up axis (Y for AR Quick Look); default: keep the input's.",
+        case_sensitive=False, show_default=False)] = None,
 ) -> None:
     """Convert a motion between BVH and OpenUSD (UsdSkel)."""
     from usdmotion.cli._progress import progress
@@ -35,6 +38,10 @@ def convert(
         raise OutputError(f"{output}: output would overwrite the input")
     start = time.perf_counter()
     motion = read_input(source, units, up_axis, root_offset, lenient, ignore_joint_positions)
+    if to_up_axis is not None and to_up_axis.value != "auto":
+        from usdmotion.ops.up_axis import convert_up_axis
+
+        motion = convert_up_axis(motion, to_up_axis.value)
     options = {}
     if mesh:
         from usdmotion.io.usd_mesh import body_decorator
