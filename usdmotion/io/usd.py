@@ -169,6 +169,9 @@ def write_usd(motion: Motion, path: str | os.PathLike, name: str | None = None,
                 add_skinned_meshes(stage, skel, motion, path)
             if decorate is not None:
                 decorate(stage, skel)
+            from usdmotion.io.usd_ar import finish_stage
+
+            finish_stage(stage, skel, motion)
             stage.GetRootLayer().Save()
             del stage
             if ext == ".usdz":
@@ -177,7 +180,21 @@ def write_usd(motion: Motion, path: str | os.PathLike, name: str | None = None,
         finally:
             if scratch is not None:
                 shutil.rmtree(scratch, ignore_errors=True)
+    if ext == ".usdz":
+        _warn_unless_ar_ready(path)
     return path
+
+
+def _warn_unless_ar_ready(path: Path) -> None:
+    import warnings
+
+    from usdmotion.errors import UsdMotionWarning
+    from usdmotion.io.usd_ar import ar_quick_look_problems
+
+    problems = ar_quick_look_problems(path)
+    if problems:
+        warnings.warn(f"{path}: not AR Quick Look compliant: {'; '.join(problems[:3])}"
+                      f"{' …' if len(problems) > 3 else ''}", UsdMotionWarning, stacklevel=3)
 
 
 def validate_stage(stage) -> list[str]:
