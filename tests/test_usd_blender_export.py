@@ -91,3 +91,53 @@ def test_blender_skinned_character_with_shape_keys_is_carried_to_the_output(expo
     moved = np.linalg.norm(offsets, axis=1) > 1e-9
     assert moved.sum() == 8  # the 8 points the shape key moved by 5 cm in the mesh, × the object's 1.2
     assert np.allclose(offsets[moved], [0, 0, 0.05 * 1.2], atol=1e-6)
+
+
+def _raster(triangles: np.ndarray, width: int, height: int) -> np.ndarray:
+    """Boolean coverage ``(height, width)`` of pixel centres by 2-D triangles ``(T, 3, 2)``."""
+    ys, xs = np.mgrid[0:height, 0:width] + 0.5
+    mask = np.zeros((height, width), bool)
+    for a, b, c in triangles:
+        area = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
+        if abs(area) < 1e-12:
+            continue
+        w0 = ((b[0] - xs) * (c[1] - ys) - (b[1] - ys) * (c[0] - xs)) / area
+        w1 = ((c[0] - xs) * (a[1] - ys) - (c[1] - ys) * (a[0] - xs)) / area
+        mask |= (w0 >= 0) & (w1 >= 0) & (1 - w0 - w1 >= 0)
+    return mask
+
+
+def test_render_shows_the_characters_own_mesh(exported, tmp_path):
+    """Must-show 4: a frame rendered with ``--body stage`` covers the pixels of the
+    character's own skinned mesh projected with the render's camera (and the generated
+    capsule body does not)."""
+    from PIL import Image
+
+    from usdmotion.io import read_motion
+    from usdmotion.render import RenderOptions, plan_render, render_motion
+    from usdmotion.render.camera import project
+    from usdmotion.render.scene import to_render_space
+    from usdmotion.skin import skin_frames
+    from usdmotion.skin_stage import stage_body
+
+    motion = read_motion(exported["skinned_shape_keys"]["file"])
+    frame, size = 6, (192, 144)
+    masks = {}
+    for which in ("stage", "generated"):
+        options = RenderOptions(width=size[0], height=size[1], start=frame, end=frame + 1, style="body", grid=False,
+                                overlay=False, body=which)
+        render_motion(motion, tmp_path / which / "####.png", options)
+        image = np.asarray(Image.open(sorted((tmp_path / which).glob("*.png"))[0]).convert("RGB"), np.int32)
+        masks[which] = np.abs(image - image[0, 0]).sum(axis=-1) > 30  # differs from the background
+    plan = plan_render(motion, options)
+    skinned = skin_frames(stage_body(motion), motion, np.array([frame]))[0]
+    pixels = project(to_render_space(skinned, motion.meters_per_unit, motion.up_axis), plan.camera.poses[0],
+                     plan.camera.yfov, *size)
+    projected = _raster(pixels[stage_body(motion).faces], *size)
+
+    def iou(a, b):
+        return (a & b).sum() / max((a | b).sum(), 1)
+
+    assert projected.sum() > 200  # the character fills a good part of the frame
+    assert iou(masks["stage"], projected) > 0.85
+    assert iou(masks["generated"], projected) < iou(masks["stage"], projected) - 0.1

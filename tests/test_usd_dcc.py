@@ -367,3 +367,38 @@ def dataclasses_replace(motion, **changes):
     import dataclasses
 
     return dataclasses.replace(motion, **changes)
+
+
+# ------------------------------------------------------------------ 6: the stage's own body for render
+
+
+def usd_core_baked_world(path, times):
+    """World points ``(T, V, 3)`` of every skinned mesh after usd-core's ``UsdSkel.BakeSkinning``."""
+    from pxr import Gf, Usd, UsdGeom, UsdSkel
+
+    stage = Usd.Stage.Open(str(path))
+    stage.SetEditTarget(stage.GetSessionLayer())  # bake into the session layer, not the file
+    assert UsdSkel.BakeSkinning(stage.Traverse(), Gf.Interval(min(times), max(times)))
+    out = {}
+    for prim in stage.Traverse():
+        if prim.IsA(UsdGeom.Mesh) and prim.HasAPI(UsdSkel.BindingAPI):
+            frames = []
+            for t in times:
+                points = np.array(UsdGeom.Mesh(prim).GetPointsAttr().Get(t), np.float64)
+                world = np.array(UsdGeom.XformCache(t).GetLocalToWorldTransform(prim))
+                frames.append((np.concatenate([points, np.ones((len(points), 1))], axis=1) @ world)[:, :3])
+            out[prim.GetName()] = np.asarray(frames)
+    return out
+
+
+def test_the_stage_body_skins_as_usd_core_bakes_it(tmp_path):
+    from usdmotion.skin import skin_frames
+    from usdmotion.skin_stage import stage_body
+
+    source = _skinned_stage(tmp_path / "skinned.usda")
+    motion = read_motion(source)
+    body = stage_body(motion)
+    assert body.faces.shape == (12, 3) and len(body.vertices) == 36
+    expected = usd_core_baked_world(source, range(10))["Body"]
+    got = skin_frames(body, motion)
+    assert np.abs(got - expected).max() <= POSITION_TOL * float(np.ptp(expected.reshape(-1, 3), axis=0).max())

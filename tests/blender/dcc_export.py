@@ -64,14 +64,18 @@ def add_skinned_body(arm):
     """A mesh of boxes along the bones, parented to ``arm`` with an Armature modifier, one
     vertex group per bone (blended near joints), and a 'Smile' shape key animated 0 → 1."""
     verts, faces, groups = [], [], []
+    ring = [(-0.04, -0.04), (0.04, -0.04), (0.04, 0.04), (-0.04, 0.04)]  # counter-clockwise seen from +Z
     for b, (name, parent, head, tail) in enumerate(BONES):
+        up = tail[2] >= head[2]
         for t in (0.0, 0.5, 1.0):
             c = [h + t * (e - h) for h, e in zip(head, tail)]
             base = len(verts)
-            verts += [(c[0] + dx, c[1] + dy, c[2]) for dx in (-0.04, 0.04) for dy in (-0.04, 0.04)]
+            verts += [(c[0] + dx, c[1] + dy, c[2]) for dx, dy in ring]
             groups += [(name, parent, t)] * 4
-            if t > 0:
-                faces += [(base - 4, base - 3, base + 1, base), (base - 2, base - 1, base + 3, base + 2)]
+            if t > 0:  # closed tube, faces wound outwards whichever way the bone points
+                for i in range(4):
+                    quad = (base - 4 + i, base - 4 + (i + 1) % 4, base + (i + 1) % 4, base + i)
+                    faces.append(quad if up else quad[::-1])
     data = bpy.data.meshes.new("Body")
     data.from_pydata(verts, [], faces)
     body = bpy.data.objects.new("Body", data)
@@ -88,7 +92,7 @@ def add_skinned_body(arm):
             body.vertex_groups[name].add([v], 1.0, "REPLACE")
     body.shape_key_add(name="Basis")
     smile = body.shape_key_add(name="Smile")
-    for point in smile.data[:8]:
+    for point in smile.data[:8]:  # the first two rings
         point.co.z += 0.05
     for k, frame in enumerate(FRAMES):
         smile.value = k / (len(FRAMES) - 1)

@@ -26,6 +26,8 @@ def render(
     camera: Annotated[str, Opt(help="Preset (side, front, top, follow, orbit) or a USD camera: "
                                     "cam.usda[:/Path/To/Camera].")] = "side",
     style: Annotated[str, Opt(help="body, stick or both.")] = "body",
+    body: Annotated[str, Opt(help="auto (the input's own skinned mesh if it has one), stage or generated "
+                                  "(usdmotion's capsule body).")] = "auto",
     grid: Annotated[bool, Opt(help="Draw the ground grid.")] = True,
     grid_scale: Annotated[float, Opt(help="Grid spacing in metres.")] = 1.0,
     trace: Annotated[list[str] | None, Opt(help="Joint name or 'com' whose path to draw (repeatable).")] = None,
@@ -50,7 +52,7 @@ def render(
     other = read_input(compare, units, up_axis, root_offset, lenient) if compare else None
     options = RenderOptions(width=width, height=height, start=start, end=end, fps=fps, speed=speed, camera=camera,
                             style=style, grid=grid, grid_scale=grid_scale, traces=tuple(trace or ()),
-                            overlay=overlay, compare_mode=compare_mode, shadows=shadows, msaa=msaa, quality=quality,
+                            overlay=overlay, compare_mode=compare_mode, shadows=shadows, msaa=msaa, quality=quality, body=body,
                             labels=(source.name, compare.name if compare else ""))
     total = len(output_frames(motion, options)[0])
     with progress(f"rendering {output.name}", total=total, unit="frames") as update:

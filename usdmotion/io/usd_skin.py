@@ -177,9 +177,10 @@ def _blend_shapes(query, to_motion) -> tuple[BlendShape, ...]:
     return tuple(shapes)
 
 
-def usable_meshes(motion, source=None) -> list[SkinnedMesh]:
+def usable_meshes(motion, source=None, blend_shape_warning: bool = True) -> list[SkinnedMesh]:
     """The meshes of ``motion`` whose joints still exist with their rest offsets; warns
-    about each one left out and about blend shape animation that is not carried."""
+    about each one left out and (``blend_shape_warning``) about blend shape animation
+    that is not carried."""
     keep = []
     index = {n: j for j, n in enumerate(motion.joint_names)}
     scale = max(float(np.abs(motion.offsets).max(initial=0.0)), 1e-12)
@@ -192,7 +193,7 @@ def usable_meshes(motion, source=None) -> list[SkinnedMesh]:
             warnings.warn(f"{source or 'output'}: skinned mesh {mesh.name} left out: {why}, so its weights would "
                           "deform the wrong bones", UsdMotionWarning, stacklevel=3)
             continue
-        if mesh.animated_blend_shapes:
+        if mesh.animated_blend_shapes and blend_shape_warning:
             warnings.warn(f"{source or 'output'}: skinned mesh {mesh.name}: its blend shapes are kept but their "
                           "animated weights are not", UsdMotionWarning, stacklevel=3)
         keep.append(mesh)

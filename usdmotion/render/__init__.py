@@ -47,6 +47,7 @@ class RenderOptions:
     msaa: int = 0
     quality: int = 20
     body_resolution: int = 96
+    body: str = "auto"  # "stage": the input's own skinned meshes, "generated": usdmotion.skin.build_body, "auto": stage if any
     labels: tuple[str, str] = ("", "")
 
 
@@ -103,6 +104,8 @@ def output_frames(motion: Motion, options: RenderOptions) -> tuple[np.ndarray, n
 def _check_options(options: RenderOptions) -> None:
     if options.style not in STYLES:
         raise UsdMotionError(f"unknown style {options.style!r} (use {', '.join(STYLES)})")
+    if options.body not in ("auto", "stage", "generated"):
+        raise UsdMotionError(f"--body must be auto, stage or generated, got {options.body!r}")
     if options.compare_mode not in COMPARE_MODES:
         raise UsdMotionError(f"unknown compare mode {options.compare_mode!r} (use {', '.join(COMPARE_MODES)})")
     if not (16 <= options.width <= 8192 and 16 <= options.height <= 8192):
