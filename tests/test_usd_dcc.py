@@ -402,3 +402,14 @@ def test_the_stage_body_skins_as_usd_core_bakes_it(tmp_path):
     expected = usd_core_baked_world(source, range(10))["Body"]
     got = skin_frames(body, motion)
     assert np.abs(got - expected).max() <= POSITION_TOL * float(np.ptp(expected.reshape(-1, 3), axis=0).max())
+
+
+def test_retarget_says_the_source_mesh_is_left_out(tmp_path, capsys):
+    from usdmotion.cli import main
+
+    source = _skinned_stage(tmp_path / "skinned.usda")
+    code = main(["retarget", str(source), str(tmp_path / "out.usda"), "--remove", "RShin", "--iterations", "5"])
+    err = capsys.readouterr().err
+    assert code == 0, err
+    assert "skinned meshes (Body) left out: retarget changes the skeleton" in err
+    assert not Usd.Stage.Open(str(tmp_path / "out.usda")).GetPrimAtPath("/out/Body")
