@@ -413,3 +413,22 @@ def test_retarget_says_the_source_mesh_is_left_out(tmp_path, capsys):
     assert code == 0, err
     assert "skinned meshes (Body) left out: retarget changes the skeleton" in err
     assert not Usd.Stage.Open(str(tmp_path / "out.usda")).GetPrimAtPath("/out/Body")
+
+
+@pytest.mark.parametrize(("custom", "message"), [
+    ({"channels": Vt.StringArray(["Qrotation Wposition"] * len(JOINTS))}, "'Qrotation' is not a BVH channel"),
+    ({"channels": Vt.StringArray(["Xrotation Xrotation"] * len(JOINTS))}, "a channel repeats"),
+    ({"endSites": Vt.IntArray([0])}, "endSites that are not leaf joints"),
+])
+def test_distrusted_metadata_is_ignored_and_the_bvh_reads_back(tmp_path, custom, message):
+    from usdmotion.io import write_motion
+
+    path = tmp_path / "meta.usda"
+    stage = _new_stage(path)
+    UsdSkel.Root.Define(stage, "/Char")
+    author_skeleton(stage, "/Char/Skel").GetPrim().SetCustomDataByKey("usdmotion", custom)
+    stage.GetRootLayer().Save()
+    with pytest.warns(UserWarning, match=message):
+        motion = read_usd(path)
+    back = read_motion(write_motion(motion, tmp_path / "back.bvh"))
+    _assert_matches_usd_core(back, path, "/Char/Skel", range(10))

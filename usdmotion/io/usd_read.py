@@ -221,10 +221,7 @@ def read_usd_skeleton(stage, path: Path, skeleton: str | None = None, resample: 
 
     custom = dict(skel.GetPrim().GetCustomDataByKey(CUSTOM_KEY) or {})
     names = np.array(joint_names(skel, tokens, custom), dtype=object)
-    end_sites = np.zeros(len(names), bool)
-    end_sites[[int(j) for j in custom.get("endSites", []) if 0 <= int(j) < len(names)]] = True
-    channels = custom.get("channels")
-    channels = tuple(tuple(c.split()) for c in channels) if channels is not None and len(channels) == len(names) else None
+    end_sites, channels = trusted_layout(custom, parents, path, where)
     if roots.size > 1:
         order, parents, rotations, translations, offsets = merge_roots(parents, rotations, translations, offsets, rest_q)
         names, end_sites, channels = names[order], end_sites[order], None
@@ -261,6 +258,41 @@ def _meshes(skel, query, tokens, names, order, offsets, times):
     by_token = dict(zip([tokens[i] for i in order] if order is not None else tokens, names))
     ancestor_row = skeleton_world(skel, times[:1])[0].T
     return read_skinned_meshes(skel, query, by_token, dict(zip(names, offsets)), ancestor_row)
+
+
+def trusted_layout(custom: dict, parents: np.ndarray, path: Path, where) -> tuple[np.ndarray, tuple | None]:
+    """``(end_sites (J,), channels)`` from our customData, distrusted: end sites must be
+    leaves, channels known BVH names without repeats and none on an end site; metadata
+    that fails is ignored with a warning (defaults: no end sites, a default layout)."""
+    from usdmotion.motion import CHANNEL_NAMES
+
+    n = parents.size
+    end_sites = np.zeros(n, bool)
+    try:
+        listed = np.array([int(j) for j in custom.get("endSites", [])], np.int64)
+        channels = custom.get("channels")
+        channels = None if channels is None else tuple(tuple(str(c).split()) for c in channels)
+    except (TypeError, ValueError):
+        listed, channels = np.zeros(0, np.int64), None
+        warnings.warn(f"{path}: {where}: ignoring malformed usdmotion customData", UsdMotionWarning, stacklevel=4)
+    has_child = np.zeros(n, bool)
+    has_child[parents[parents >= 0]] = True
+    if listed.size and (np.any((listed < 0) | (listed >= n)) or has_child[listed[(listed >= 0) & (listed < n)]].any()):
+        warnings.warn(f"{path}: {where}: ignoring customData endSites that are not leaf joints", UsdMotionWarning,
+                      stacklevel=4)
+    elif listed.size:
+        end_sites[listed] = True
+    if channels is not None:
+        bad = [c for cs in channels for c in cs if c not in CHANNEL_NAMES]
+        repeated = any(len(set(cs)) != len(cs) for cs in channels)
+        on_end_site = any(channels[j] for j in np.flatnonzero(end_sites)) if len(channels) == n else False
+        if len(channels) != n or bad or repeated or on_end_site:
+            why = (f"{bad[0]!r} is not a BVH channel" if bad else "a channel repeats" if repeated
+                   else "an end site has channels" if on_end_site else f"{len(channels)} layouts for {n} joints")
+            warnings.warn(f"{path}: {where}: ignoring the customData channel layout ({why}); a default layout "
+                          "is used for BVH output", UsdMotionWarning, stacklevel=4)
+            channels = None
+    return end_sites, channels
 
 
 def rest_transforms(skel, n_joints: int, path: Path) -> np.ndarray:
