@@ -432,3 +432,22 @@ def test_distrusted_metadata_is_ignored_and_the_bvh_reads_back(tmp_path, custom,
         motion = read_usd(path)
     back = read_motion(write_motion(motion, tmp_path / "back.bvh"))
     _assert_matches_usd_core(back, path, "/Char/Skel", range(10))
+
+
+def test_info_lists_the_skeletons_of_a_stage(tmp_path, capsys):
+    import json
+
+    from usdmotion.cli import main
+
+    path = tmp_path / "one.usda"
+    stage = _new_stage(path)
+    UsdSkel.Root.Define(stage, "/A")
+    author_skeleton(stage, "/A/Skel")
+    stage.GetRootLayer().Save()
+    assert main(["info", str(path), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["skeletons"] == ["/A/Skel"]
+    UsdSkel.Root.Define(stage, "/B")
+    author_skeleton(stage, "/B/Skel")
+    stage.GetRootLayer().Save()
+    assert main(["info", str(path)]) == 2
+    assert "2 skeletons in the stage (/A/Skel, /B/Skel); choose one with --skeleton" in capsys.readouterr().err

@@ -24,6 +24,11 @@ def info(
 
     summary = describe(read_input(source, units, up_axis, root_offset, lenient))
     summary = {"file": str(source), **summary}
+    if source.suffix.lower() in (".usd", ".usda", ".usdc", ".usdz"):
+        from usdmotion.io.usd import _open_stage
+        from usdmotion.io.usd_read import list_skeletons
+
+        summary["skeletons"] = list_skeletons(_open_stage(source))
     if as_json:
         typer.echo(json.dumps(summary, indent=2))
         return
@@ -44,6 +49,8 @@ def _print_summary(s: dict) -> None:
     console.print(f"  units       1 unit = {unit.removeprefix('1 ')} ({s['meters_per_unit']:g} m), {s['up_axis']}-up, "
                   f"root offset {s['root_offset']}, rest extent {s['rest_extent']:.4g} units "
                   f"({s['rest_extent_m']:.3g} m)")
+    if len(s.get("skeletons", [])) > 1:
+        console.print(f"  skeletons   {', '.join(s['skeletons'])} (choose with --skeleton)")
     if s["joints_with_position_channels"]:
         names = s["joints_with_position_channels"]
         console.print(f"  positions   on {len(names)} non-root joints: {', '.join(names[:6])}"
