@@ -198,15 +198,7 @@ def read_usd_skeleton(stage, path: Path, skeleton: str | None = None, resample: 
 
     skel = choose_skeleton(stage, path, skeleton)
     where = skel.GetPath()
-    query = UsdSkel.Cache().GetSkelQuery(skel)
-    if not query:
-        raise UsdReadError(path, f"skeleton {where} is invalid (joints, rest transforms?)")
-    topology = query.GetTopology()
-    ok, reason = topology.Validate()
-    if not ok:
-        raise UsdReadError(path, f"skeleton {where}: {reason}")
-    parents = np.asarray(topology.GetParentIndices(), dtype=np.int64)
-    tokens = [str(t) for t in query.GetJointOrder()]
+    query, parents, tokens = skeleton_topology(skel, path)
     rest = rest_transforms(skel, len(tokens), path)
     rest_q, offsets, _ = decompose(rest)
 
@@ -258,6 +250,20 @@ def _meshes(skel, query, tokens, names, order, offsets, times):
     by_token = dict(zip([tokens[i] for i in order] if order is not None else tokens, names))
     ancestor_row = skeleton_world(skel, times[:1])[0].T
     return read_skinned_meshes(skel, query, by_token, dict(zip(names, offsets)), ancestor_row)
+
+
+def skeleton_topology(skel, path: Path):
+    """``(UsdSkel.SkeletonQuery, parents (J,) int64, joint path tokens)``, validated."""
+    from pxr import UsdSkel
+
+    query = UsdSkel.Cache().GetSkelQuery(skel)
+    if not query:
+        raise UsdReadError(path, f"skeleton {skel.GetPath()} is invalid (joints, rest transforms?)")
+    topology = query.GetTopology()
+    ok, reason = topology.Validate()
+    if not ok:
+        raise UsdReadError(path, f"skeleton {skel.GetPath()}: {reason}")
+    return query, np.asarray(topology.GetParentIndices(), dtype=np.int64), [str(t) for t in query.GetJointOrder()]
 
 
 def trusted_layout(custom: dict, parents: np.ndarray, path: Path, where) -> tuple[np.ndarray, tuple | None]:
