@@ -39,7 +39,7 @@ GOAL_S = 0.5
 def tiled_motion(frames: int):
     """The walk without frame 0, repeated to ``frames`` frames, root advanced per tile."""
     from usdmotion.io import read_motion
-    from usdmotion.ops.analyse import slice_frames
+    from usdmotion.ops.analyse.measures import slice_frames
 
     walk = slice_frames(read_motion(SOURCE, units="asf"), 1)
     reps = -(-frames // walk.n_frames)
@@ -70,8 +70,8 @@ def main() -> int:
         return 2
     from usdmotion.anthropometry import body_model
     from usdmotion.io import read_motion, write_motion
-    from usdmotion.ops.analyse import analyse
-    from usdmotion.ops.analyse_report import summary, write_kinematics
+    from usdmotion.ops.analyse.measures import analyse
+    from usdmotion.ops.analyse.report import summary, write_kinematics
 
     motion = tiled_motion(args.frames)
     rows: dict[str, dict] = {}

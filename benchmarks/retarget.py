@@ -53,7 +53,7 @@ def removal_list(motion, names=PAPER_REMOVE) -> list[str]:
 
 
 def centred_problem(motion, remove):
-    from usdmotion.ops.retarget import _problem, prepare
+    from usdmotion.ops.retarget.pipeline import _problem, prepare
 
     setup = prepare(motion, remove=remove)
     centre = setup.translations[:, 0].copy()
@@ -63,7 +63,7 @@ def centred_problem(motion, remove):
 
 
 def losses(setup, q, t, frames):
-    from usdmotion.ops.retarget import frame_losses
+    from usdmotion.ops.retarget.pipeline import frame_losses
 
     centre = setup.translations[frames, 0]
     targets = setup.targets[frames] - centre[:, None]
@@ -71,7 +71,7 @@ def losses(setup, q, t, frames):
 
 
 def speed(motion, adam_sample: int, adam_block: int, repeats: int) -> dict:
-    from usdmotion.ops.retarget_solve import solve
+    from usdmotion.ops.retarget.solve import solve
 
     setup, problem, t0, targets = centred_problem(motion, removal_list(motion))
     n = motion.n_frames
@@ -119,7 +119,7 @@ def speed(motion, adam_sample: int, adam_block: int, repeats: int) -> dict:
 
 
 def paper_experiment(files) -> list[dict]:
-    from usdmotion.ops.retarget import retarget
+    from usdmotion.ops.retarget.pipeline import retarget
 
     rows = []
     for relative in files:
@@ -138,7 +138,7 @@ def paper_experiment(files) -> list[dict]:
 
 
 def cross_rig(source_file: str, targets) -> list[dict]:
-    from usdmotion.ops.retarget import retarget
+    from usdmotion.ops.retarget.pipeline import retarget
 
     source = read(source_file, units="asf")
     rows = []
@@ -157,7 +157,7 @@ def cross_rig(source_file: str, targets) -> list[dict]:
 def print_speed(console, s: dict) -> None:
     from rich.table import Table
 
-    from usdmotion.ops.retarget_solve import device_description
+    from usdmotion.ops.retarget.solve import device_description
 
     table = Table(title=f"{s['file']}: {s['source_joints']} -> {s['target_joints']} joints, {s['frames']} frames "
                         f"({s['parameters_per_frame']} parameters/frame, {device_description()}, float32)")
@@ -219,7 +219,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     from rich.console import Console
 
-    from usdmotion.ops.retarget_solve import device_description
+    from usdmotion.ops.retarget.solve import device_description
 
     console = Console(width=150)
     result = {"machine": {"python": platform.python_version(), "cpus": os.cpu_count(), "device": device_description(),

@@ -5,7 +5,7 @@ Usage: ``python benchmarks/segment.py [--repeat 20] [--data ../shared/data]``
 Prints tables and writes ``benchmarks/results/segment.json``:
 
 1. precision / recall of the paper's heuristic and of kcpd on CMU 86_01 and 14_14
-   (rule: ``usdmotion.ops.segment_eval``; tolerances 0.25 / 0.5 / 1.0 s, 0.5 s is the
+   (rule: ``usdmotion.ops.segment.evaluate``; tolerances 0.25 / 0.5 / 1.0 s, 0.5 s is the
    headline), beside the paper's table;
    and kcpd without the move to the nearest rest (``kcpd-raw``);
 2. the heuristic over a grid of its two settings (cut-off, param);
@@ -36,8 +36,8 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from usdmotion.io import read_motion  # noqa: E402
-from usdmotion.ops import segment as S  # noqa: E402
-from usdmotion.ops.segment_eval import Score, load_labels, reordered_take, score_cuts, synthetic_take  # noqa: E402
+from usdmotion.ops.segment import detect as S  # noqa: E402
+from usdmotion.ops.segment.evaluate import Score, load_labels, reordered_take, score_cuts, synthetic_take  # noqa: E402
 
 PAPER = {"heuristic": {"precision": 0.849, "recall": 0.975, "time_per_clip_s": 2.4},
          "ppca": {"precision": 0.915, "recall": 0.932, "time_per_clip_s": 10.0}}

@@ -24,7 +24,7 @@ protocol:
 * **loc.**: median |detected − true| of the hits in seconds (labelled takes / synthetic takes),
   the localisation that a snapping rule can silently degrade.
 
-Scoring is ``usdmotion.ops.segment_eval.score_cuts`` at 0.5 s (the stated rule, unchanged).
+Scoring is ``usdmotion.ops.segment.evaluate.score_cuts`` at 0.5 s (the stated rule, unchanged).
 After the table: how far inside its valid region each kcpd hit lies, and diagnostics of the
 86_01 miss (best single split by feature and kernel width, activity levels, typicality of the
 stance before the kick under the walk's distribution).
@@ -52,9 +52,9 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from usdmotion.io import read_motion  # noqa: E402
-from usdmotion.ops import segment as S  # noqa: E402
-from usdmotion.ops.roles import find_roles  # noqa: E402
-from usdmotion.ops.segment_eval import Labels, Score, load_labels, score_cuts, synthetic_take  # noqa: E402
+from usdmotion.ops.segment import detect as S  # noqa: E402
+from usdmotion.ops.segment.roles import find_roles  # noqa: E402
+from usdmotion.ops.segment.evaluate import Labels, Score, load_labels, score_cuts, synthetic_take  # noqa: E402
 
 # benchmarks/segment.py (the takes, the synthetic orders and the shuffles), loaded by path so that
 # the benchmarks folder is not put on sys.path.
@@ -355,7 +355,7 @@ def evaluate(v: Variant, takes: dict[str, list[Take]]) -> dict:
 
 def margins(t: Take, cuts: np.ndarray) -> list[dict]:
     """For each hit: frames between the detection and the nearer edge of its valid region."""
-    from usdmotion.ops.segment_eval import valid_regions
+    from usdmotion.ops.segment.evaluate import valid_regions
 
     regions = valid_regions(t.labels, int(round(TOL_S * t.fps)))
     out = []

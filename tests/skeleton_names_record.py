@@ -96,8 +96,9 @@ def _attempt(call):
 def record_skeleton(motion) -> dict:
     """Everything the three modules find on one skeleton."""
     from usdmotion import anthropometry as A
-    from usdmotion.ops import analyse, roles as R
-    from usdmotion.ops.jointmap import detect_profile, profile_joints, rig_profiles
+    from usdmotion.ops.analyse import measures as analyse
+    from usdmotion.ops.segment import roles as R
+    from usdmotion.ops.retarget.jointmap import detect_profile, profile_joints, rig_profiles
 
     def guessed_roles():
         found, missing = R._guess_roles(motion)
@@ -136,8 +137,8 @@ def record_skeleton(motion) -> dict:
 def record_names(names) -> dict:
     """Per joint name: ``roles.parse_side``, ``anthropometry.side_and_base``, ``jointmap.normalise_name``."""
     from usdmotion.anthropometry import side_and_base
-    from usdmotion.ops.jointmap import normalise_name
-    from usdmotion.ops.roles import parse_side
+    from usdmotion.ops.retarget.jointmap import normalise_name
+    from usdmotion.ops.segment.roles import parse_side
 
     return {n: {"parse_side": list(parse_side(n)), "side_and_base": list(side_and_base(n)),
                 "normalise_name": normalise_name(n)} for n in sorted(set(names))}
@@ -148,7 +149,7 @@ def record_maps(skeletons: dict) -> dict:
 
     The maps of :data:`FULL_MAPS` are kept in full, the others as :func:`digest`.
     """
-    from usdmotion.ops.jointmap import auto_map
+    from usdmotion.ops.retarget.jointmap import auto_map
 
     distinct: dict[tuple, str] = {}
     for label, m in skeletons.items():

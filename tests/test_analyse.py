@@ -16,8 +16,8 @@ from scipy.spatial.transform import Rotation
 from usdmotion.anthropometry import body_model
 from usdmotion.errors import InputError
 from usdmotion.io import read_motion, write_motion
-from usdmotion.ops.analyse import analyse, euler_angles, quat_to_euler_fast, slice_frames
-from usdmotion.ops.smoothing import FilterSpec, smooth_derivatives
+from usdmotion.ops.analyse.measures import analyse, euler_angles, quat_to_euler_fast, slice_frames
+from usdmotion.ops.analyse.smoothing import FilterSpec, smooth_derivatives
 from usdmotion.synthesis import JointSpec, synthesize
 
 FPS = 200.0
@@ -244,7 +244,7 @@ def test_real_walk_agrees_with_pybvh(walk):
     # pybvh differentiates with np.gradient (3 points), we with 5: on raw 120 Hz capture their
     # difference is noise. Low-pass filtering commutes with differentiation, so our Butterworth
     # applied to pybvh's derivatives must match our filtered derivatives away from the ends.
-    from usdmotion.ops.smoothing import butter_lowpass
+    from usdmotion.ops.analyse.smoothing import butter_lowpass
 
     inner = slice(24, -24)  # 0.2 s: where the end extensions differ
     vel = butter_lowpass(analysis.node_velocities(bvh), motion.fps, 6.0)

@@ -8,7 +8,7 @@ import pytest
 from usdmotion.io import read_motion, write_motion
 from usdmotion.io.bvh import motion_from_bvh, parse_bvh
 from usdmotion.ops.analyse import analyse
-from usdmotion.ops.analyse_report import joint_summary
+from usdmotion.ops.analyse.report import joint_summary
 from usdmotion.rotations import quat_conjugate, quat_mul
 
 # A thigh whose X angle swings 150° → 210° → 150°; the file writes it wrapped to ±180°.

@@ -11,7 +11,8 @@ import pytest
 from reference_fk import reference_world_positions
 
 from usdmotion.errors import BvhParseError, UsdMotionWarning
-from usdmotion.io.bvh import bvh_text, guess_root_offset, motion_from_bvh, parse_bvh, read_bvh, write_bvh
+from usdmotion.io.bvh import guess_root_offset, motion_from_bvh, parse_bvh, read_bvh
+from usdmotion.io.bvh_write import bvh_text, write_bvh
 from usdmotion.io.bvh_header import frame_rate
 from usdmotion.kinematics import joint_positions
 

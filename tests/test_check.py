@@ -9,8 +9,8 @@ import pytest
 
 from usdmotion.check import check_kinematics, check_motion, load_limits
 from usdmotion.errors import InputError
-from usdmotion.ops.analyse import analyse, slice_frames
-from usdmotion.ops.smoothing import FilterSpec
+from usdmotion.ops.analyse.measures import analyse, slice_frames
+from usdmotion.ops.analyse.smoothing import FilterSpec
 from usdmotion.synthesis import JointSpec, example_path, load_synthesis, synthesize
 
 FPS = 100.0

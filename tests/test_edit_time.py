@@ -9,7 +9,7 @@ from scipy.interpolate import PchipInterpolator
 from scipy.spatial.transform import Rotation, Slerp
 
 from usdmotion.io import read_motion
-from usdmotion.io.bvh import bvh_text
+from usdmotion.io.bvh_write import bvh_text
 from usdmotion.kinematics import joint_positions
 from usdmotion.ops.edit import EditError, cycle, resample, speed, trim
 from usdmotion.ops.edit.cycle import loop_end

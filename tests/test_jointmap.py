@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from usdmotion.io import read_motion
-from usdmotion.ops.jointmap import (JointMapError, auto_map, detect_profile, load_joint_map, normalise_name,
+from usdmotion.ops.retarget.jointmap import (JointMapError, auto_map, detect_profile, load_joint_map, normalise_name,
                                     profile_joints, resolve_map, rig_profiles)
 
 RIGS = {  # shared file -> profile it must be recognised as

@@ -15,8 +15,8 @@ import pytest
 from usdmotion.io import read_motion
 from usdmotion.kinematics import fk_arrays, joint_positions
 from usdmotion.motion import Motion
-from usdmotion.ops.hierarchy import AddSpec, derive_rig, rig_from_motion
-from usdmotion.ops.retarget import frame_losses, prepare, retarget
+from usdmotion.ops.retarget.hierarchy import AddSpec, derive_rig, rig_from_motion
+from usdmotion.ops.retarget.pipeline import frame_losses, prepare, retarget
 from usdmotion.rotations import euler_to_quat, quat_mul, quat_rotate
 
 WALK = "cmu/cgspeed_12_01_walk.bvh"
@@ -63,7 +63,7 @@ def reference_positions(rotations, translations, parents):
 
 
 def small_problem():
-    from usdmotion.ops.retarget_solve import Problem
+    from usdmotion.ops.retarget.solve import Problem
 
     parents = np.array([-1, 0, 1, 2, 1, 4, 0])
     rng = np.random.default_rng(3)
@@ -79,7 +79,7 @@ def test_loss_gradient_matches_finite_differences():
     import jax
     import jax.numpy as jnp
 
-    from usdmotion.ops.retarget_solve import make_apply, make_residuals
+    from usdmotion.ops.retarget.solve import make_apply, make_residuals
 
     problem, q, t, targets = small_problem()
     with jax.enable_x64(True):
@@ -107,9 +107,9 @@ def test_tree_lm_step_equals_the_dense_solve_of_the_autodiff_jacobian(trans):
     import jax
     import jax.numpy as jnp
 
-    from usdmotion.ops.retarget_solve import (LM_DIAG_FLOOR, LM_NULL_DAMPING, Problem, make_apply, make_dense_step,
+    from usdmotion.ops.retarget.solve import (LM_DIAG_FLOOR, LM_NULL_DAMPING, Problem, make_apply, make_dense_step,
                                               make_jacobian, make_residuals)
-    from usdmotion.ops.retarget_tree import make_tree_step
+    from usdmotion.ops.retarget.tree_step import make_tree_step
 
     problem, q, t, targets = small_problem()
     problem = Problem(problem.parents, problem.mapped, problem.weights, problem.rot_joints, np.array(trans, int),
@@ -147,8 +147,8 @@ def test_lm_step_drops_only_the_invisible_twist():
     import jax
     import jax.numpy as jnp
 
-    from usdmotion.ops.retarget_solve import make_lm_step, make_residuals, single_point_joints
-    from usdmotion.ops.retarget_tree import make_tree_step
+    from usdmotion.ops.retarget.solve import make_lm_step, make_residuals, single_point_joints
+    from usdmotion.ops.retarget.tree_step import make_tree_step
 
     problem, q, t, targets = small_problem()  # joint 2 has one mapped descendant (3), joint 4 one (5)
     slot, joint, point = single_point_joints(problem)
@@ -189,8 +189,8 @@ def test_removed_identity_joint_has_an_exact_solution(walk):
 
 
 def test_lm_finds_the_exact_solution_from_a_poor_start(walk):
-    from usdmotion.ops.retarget import _problem
-    from usdmotion.ops.retarget_solve import solve
+    from usdmotion.ops.retarget.pipeline import _problem
+    from usdmotion.ops.retarget.solve import solve
 
     setup = prepare(walk, remove=["LHipJoint"])
     problem = _problem(setup)

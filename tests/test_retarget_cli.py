@@ -12,7 +12,8 @@ from conftest import without_warnings
 
 from usdmotion.cli import main
 from usdmotion.io import read_motion
-from usdmotion.io.bvh import read_bvh, write_bvh
+from usdmotion.io.bvh import read_bvh
+from usdmotion.io.bvh_write import write_bvh
 from usdmotion.kinematics import joint_positions
 
 WALK = "cmu/cgspeed_12_01_walk.bvh"
@@ -197,7 +198,7 @@ def test_output_must_not_overwrite_the_input(capsys, walk16):
 
 
 def test_cyclic_rig_is_rejected_by_the_library():
-    from usdmotion.ops.hierarchy import RetargetError, Rig
+    from usdmotion.ops.retarget.hierarchy import RetargetError, Rig
 
     with pytest.raises(RetargetError, match="cycle"):
         Rig(("a", "b", "c"), np.array([-1, 2, 1]), np.zeros((3, 3)), np.zeros(3, bool), None, path="t.bvh")

@@ -9,9 +9,9 @@ import pytest
 from usdmotion.errors import InputError
 from usdmotion.kinematics import joint_positions
 from usdmotion.motion import Motion
-from usdmotion.ops import roles as R
-from usdmotion.ops import segment as S
-from usdmotion.ops.segment_eval import Labels, activity_ranges, load_labels, reordered_take, score_cuts, synthetic_take
+from usdmotion.ops.segment import roles as R
+from usdmotion.ops.segment import detect as S
+from usdmotion.ops.segment.evaluate import Labels, activity_ranges, load_labels, reordered_take, score_cuts, synthetic_take
 from usdmotion.rotations import axis_angle_quat
 
 # A tiny humanoid: limbs hang along -Y, the spine points +Y, so every bone angle is π at rest.

@@ -12,7 +12,7 @@ from conftest import without_warnings
 from usdmotion.cli import main
 from usdmotion.io import read_motion
 from usdmotion.kinematics import joint_positions
-from usdmotion.ops.segment_eval import synthetic_take
+from usdmotion.ops.segment.evaluate import synthetic_take
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -94,14 +94,14 @@ def test_heuristic_method_and_json(shared_file, capsys):
     code, stdout, err = run(capsys, "segment", path, "--method", "heuristic", "--param", "0.3", "--json")
     assert code == 0, err
     doc = json.loads(stdout)
-    from usdmotion.ops import segment as S
+    from usdmotion.ops.segment import detect as S
 
     seg = S.segment(read_motion(path), method="heuristic", param=0.3)
     assert doc["cuts"] == seg.cuts.tolist() and doc["params"] == {"param": 0.3, "cutoff_hz": 2.0}
 
 
 def test_no_refine_keeps_the_detector_cuts(shared_file, capsys):
-    from usdmotion.ops import segment as S
+    from usdmotion.ops.segment import detect as S
 
     path = shared_file("cmu14/max_14_14_exercise_routine.bvh")
     docs = {}
@@ -125,7 +125,7 @@ def test_segment_eval_matches_an_independent_count(shared_file, capsys):
     truth = doc["labelled_cuts"]
     assert truth == [456, 1044, 1608, 2280, 3576]  # start_frame − 1
     for name, r in doc["methods"].items():
-        from usdmotion.ops import segment as S
+        from usdmotion.ops.segment import detect as S
 
         cuts = S.segment(read_motion(bvh), method=name).cuts
         # Independent count: walk the labelled cuts in order, take the nearest unused detection within ±60.

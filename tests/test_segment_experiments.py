@@ -53,7 +53,7 @@ def test_ppca_distance_matches_a_direct_computation(X):
 
 
 def fake_take(X, angles, fps=30.0, activity=None):
-    from usdmotion.ops.segment_eval import Labels
+    from usdmotion.ops.segment.evaluate import Labels
 
     motion = type("M", (), {"fps": fps})()
     speed = np.abs(np.gradient(angles, axis=0)) * fps
@@ -75,7 +75,7 @@ def test_ppca_cuts_a_two_regime_signal_at_the_change(X):
 
 def test_refinement_moves_a_late_cut_back_to_the_junction(X, shared_file):
     from usdmotion.io import read_motion
-    from usdmotion.ops.segment_eval import synthetic_take
+    from usdmotion.ops.segment.evaluate import synthetic_take
 
     walk = read_motion(shared_file("bandai1/dataset-1_walk_normal_001.bvh"))
     punch = read_motion(shared_file("bandai1/dataset-1_punch_normal_001.bvh"))

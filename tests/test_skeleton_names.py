@@ -20,8 +20,8 @@ from conftest import SHARED_DATA, TEST_DATA
 from skeleton_names_record import VARIANTS, record_maps, record_names, record_skeleton, skeletons_of
 
 from usdmotion import anthropometry as A
-from usdmotion.ops import roles as R
-from usdmotion.ops.jointmap import auto_map, detect_profile, load_joint_map, normalise_name, resolve_map
+from usdmotion.ops.segment import roles as R
+from usdmotion.ops.retarget.jointmap import auto_map, detect_profile, load_joint_map, normalise_name, resolve_map
 from usdmotion.skeleton_names import parse_side, profile_joints, rig_presets, rig_profiles
 
 GOLDEN = json.loads((TEST_DATA / "skeleton_names_golden.json").read_text("utf-8"))

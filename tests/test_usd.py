@@ -8,7 +8,8 @@ from reference_fk import reference_world_positions, usd_world_positions
 
 from usdmotion.errors import OutputError, UsdReadError
 from usdmotion.io import read_motion, write_motion
-from usdmotion.io.bvh import motion_from_bvh, parse_bvh, write_bvh
+from usdmotion.io.bvh import motion_from_bvh, parse_bvh
+from usdmotion.io.bvh_write import write_bvh
 from usdmotion.io.usd import read_usd, validate_stage, write_usd
 from usdmotion.kinematics import joint_positions
 

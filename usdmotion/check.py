@@ -29,7 +29,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from usdmotion.errors import InputError, UsdMotionWarning
-from usdmotion.ops.analyse import Kinematics
+from usdmotion.ops.analyse.measures import Kinematics
 
 RANGE_KEYS = ("x", "y", "z", "bend")
 MAX_KEYS = ("max_angular_speed", "max_segment_angular_speed", "max_angular_acceleration", "max_speed",
@@ -146,7 +146,7 @@ def check_motion(motion, limits: Mapping, source: str | None = None, **analyse_o
 
     ``limits["euler_order"]`` (if set) picks the Euler decomposition of the angle limits.
     """
-    from usdmotion.ops.analyse import analyse
+    from usdmotion.ops.analyse.measures import analyse
 
     options = dict(analyse_options)
     if limits.get("euler_order"):

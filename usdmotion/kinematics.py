@@ -42,7 +42,13 @@ def depth_levels(parents: np.ndarray) -> tuple[tuple[np.ndarray, np.ndarray], ..
 
 
 def _qmul_planes(a, b):
-    """Hamilton product of component-first quaternions (tuples of 4 arrays)."""
+    """Hamilton product of component-first quaternions (tuples of 4 arrays).
+
+    Not :func:`usdmotion.quat_planes.mul`: that one writes into a preallocated NumPy array
+    (``out=``, in-place ``-=``), which ``jax.numpy`` arrays do not allow, and ``fk_arrays``
+    must trace under ``jax.jit`` for retargeting. Same formula and operation order as
+    ``quat_planes.mul`` and :func:`usdmotion.rotations.quat_mul` (the wxyz-last layout).
+    """
     aw, ax, ay, az = a
     bw, bx, by, bz = b
     return (aw * bw - ax * bx - ay * by - az * bz,

@@ -20,7 +20,7 @@ from usdmotion.errors import OutputError
 from usdmotion.io.atomic import atomic_output
 from usdmotion.kinematics import joint_positions
 from usdmotion.motion import Motion
-from usdmotion.ops.analyse import Kinematics
+from usdmotion.ops.analyse.measures import Kinematics
 
 IMAGE_FORMATS = (".png", ".pdf", ".svg")
 

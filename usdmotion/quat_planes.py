@@ -4,7 +4,7 @@ The core :mod:`usdmotion.rotations` functions work on ``(..., 4)`` arrays for Nu
 JAX alike; on ``(10_000, 38, 4)`` arrays their strided component access costs 2-4x more
 than needed. These kernels take **component-first** arrays ``(4, ...)`` (contiguous
 w, x, y, z planes; same wxyz convention and Hamilton product as ``rotations``) and are
-used inside the hot paths of :mod:`usdmotion.ops.edit` and by :mod:`usdmotion.ops.analyse`
+used inside the hot paths of :mod:`usdmotion.ops.edit` and by :mod:`usdmotion.ops.analyse.measures`
 (sign continuity). Convert with :func:`to_c` / :func:`from_c` once per operation.
 """
 

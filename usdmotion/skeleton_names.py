@@ -1,8 +1,8 @@
 """What the joints of a skeleton are: names, sides, limb words, rig presets, hierarchy rules.
 
-One place for the joint recognition that segmentation roles (:mod:`usdmotion.ops.roles`),
+One place for the joint recognition that segmentation roles (:mod:`usdmotion.ops.segment.roles`),
 body-segment landmarks (:mod:`usdmotion.anthropometry`) and automatic retargeting maps
-(:mod:`usdmotion.ops.jointmap`) share:
+(:mod:`usdmotion.ops.retarget.jointmap`) share:
 
 * **Names.** :func:`strip_namespace` drops ``mixamorig:`` / ``group|`` prefixes;
   :func:`parse_side` splits a name into side and lower-case base

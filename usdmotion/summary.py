@@ -7,7 +7,7 @@ from collections import Counter
 import numpy as np
 
 from usdmotion.constants import METERS_PER_UNIT
-from usdmotion.io.bvh import default_channels, rotation_order
+from usdmotion.channels import default_channels, rotation_order
 from usdmotion.kinematics import rest_positions
 from usdmotion.motion import POSITION_CHANNELS, ROTATION_CHANNELS, Motion
 

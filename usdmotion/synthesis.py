@@ -217,7 +217,7 @@ def motion_from_spec(spec: Mapping, source: str | os.PathLike | None = None,
     ``"table": "file.csv"`` (relative to ``base_dir``) adds columns ``Joint.X`` and
     ``root.X``... to the inline ``angles`` / ``root_position``.
     """
-    from usdmotion.io.bvh import resolve_units
+    from usdmotion.channels import resolve_units
 
     source = None if source is None else str(source)
     joints = [JointSpec(j["name"], j.get("parent"), tuple(j.get("offset", (0.0, 0.0, 0.0))),

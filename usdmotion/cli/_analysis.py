@@ -6,10 +6,9 @@ from enum import Enum
 from pathlib import Path
 from typing import Annotated
 
-import numpy as np
 import typer
 
-from usdmotion.cli._options import RootOffsetChoice, UpAxisChoice, parse_start_stop
+from usdmotion.cli._options import ReadOptions, parse_start_stop
 
 SPEC_SUFFIXES = (".json", ".yaml", ".yml")
 
@@ -44,27 +43,17 @@ FileUnits = Annotated[bool, typer.Option(
     "--file-units", help="Report lengths in file units instead of metres.")]
 
 
-def read_any(path: Path, units: str | None, up_axis: UpAxisChoice | None,
-             root_offset: RootOffsetChoice = RootOffsetChoice.auto, lenient: bool = False):
+def read_any(path: Path, read: ReadOptions = ReadOptions()):
     """A motion from a motion file, a synthesis document, or a shipped example name."""
-    from usdmotion.cli._options import read_input
     from usdmotion.synthesis import EXAMPLES, example_path, load_synthesis
 
     if not path.exists() and str(path) in EXAMPLES:
         path = example_path(str(path))
     if path.suffix.lower() in SPEC_SUFFIXES:
-        import dataclasses
+        from usdmotion.channels import override_units_axis
 
-        from usdmotion.io.bvh import resolve_units
-
-        motion = load_synthesis(path)
-        changes = {}
-        if units is not None:
-            changes["meters_per_unit"] = resolve_units(units)
-        if up_axis is not None:
-            changes["up_axis"] = up_axis.value
-        return dataclasses.replace(motion, **changes) if changes else motion
-    return read_input(path, units, up_axis, root_offset, lenient)
+        return override_units_axis(load_synthesis(path), read.units, read.up_axis)
+    return read.read(path)
 
 
 def frame_slice(spec: str | None, n_frames: int) -> tuple[int, int]:
@@ -83,8 +72,10 @@ def first_frame_jumps(motion, factor: float = 10.0) -> bool:
     cgspeed's CMU conversions start with a synthetic T-pose frame; derivatives across it
     are meaningless spikes.
     """
+    import numpy as np  # deferred: loading the CLI (every command, --version) must not import NumPy
+
     from usdmotion.kinematics import joint_positions
-    from usdmotion.ops.analyse import slice_frames
+    from usdmotion.ops.analyse.measures import slice_frames
 
     if motion.n_frames < 4:
         return False
@@ -94,14 +85,14 @@ def first_frame_jumps(motion, factor: float = 10.0) -> bool:
     return bool(steps[0] > factor * later) if later > 0 else bool(steps[0] > 0)
 
 
-def prepare(path: Path, units, up_axis, root_offset, lenient, frames: str | None):
+def prepare(path: Path, read: ReadOptions, frames: str | None):
     """``(motion sliced to --frames, first frame)``; warns about a leading rest-pose frame."""
     import warnings
 
     from usdmotion.errors import UsdMotionWarning
-    from usdmotion.ops.analyse import slice_frames
+    from usdmotion.ops.analyse.measures import slice_frames
 
-    motion = read_any(path, units, up_axis, root_offset, lenient)
+    motion = read_any(path, read)
     start, stop = frame_slice(frames, motion.n_frames)
     if frames is None and first_frame_jumps(motion):
         warnings.warn(f"{path}: the motion jumps between frames 0 and 1 (a T-pose frame, as in cgspeed CMU files?); "

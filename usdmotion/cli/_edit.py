@@ -15,7 +15,7 @@ from typing import Annotated
 
 import typer
 
-from usdmotion.cli._options import RootOffsetChoice, UpAxisChoice, read_input
+from usdmotion.cli._options import ReadOptions
 
 Output = Annotated[Path, typer.Argument(help="Output motion: .bvh, .usd, .usda, .usdc or .usdz.", show_default=False)]
 Joint = Annotated[str | None, typer.Option("--joint", help="Act on this joint only (default: the whole body).",
@@ -39,9 +39,8 @@ def naming(path: Path) -> Iterator[None]:
         raise InputError(path, str(exc)) from None
 
 
-def run_edit(source: Path, output: Path, operation: Callable, what: str, units: str | None = None,
-             up_axis: UpAxisChoice | None = None, root_offset: RootOffsetChoice = RootOffsetChoice.auto) -> None:
-    """Read ``source``, apply ``operation(motion)``, write ``output``, report."""
+def run_edit(source: Path, output: Path, operation: Callable, what: str, read: ReadOptions = ReadOptions()) -> None:
+    """Read ``source`` with ``read``, apply ``operation(motion)``, write ``output``, report."""
     from usdmotion.cli._progress import progress
     from usdmotion.errors import OutputError
     from usdmotion.io import write_motion
@@ -49,7 +48,7 @@ def run_edit(source: Path, output: Path, operation: Callable, what: str, units: 
     if source.resolve() == output.resolve():
         raise OutputError(f"{output}: output would overwrite the input")
     start = time.perf_counter()
-    motion = read_input(source, units, up_axis, root_offset)
+    motion = read.read(source)
     with naming(source), progress(what):
         edited = operation(motion)
     with progress(f"writing {output.name}"):

@@ -2,6 +2,11 @@
 
 from __future__ import annotations
 
+import dataclasses
+import functools
+import inspect
+from collections.abc import Callable
+from dataclasses import dataclass
 from enum import Enum
 from pathlib import Path
 from typing import Annotated
@@ -58,14 +63,69 @@ def parse_start_stop(text: str | None) -> tuple[int | None, int | None]:
     return start, stop
 
 
-def read_input(path: Path, units: str | None, up_axis: UpAxisChoice | None,
-               root_offset: RootOffsetChoice = RootOffsetChoice.auto, lenient: bool = False,
-               ignore_joint_positions: bool = False):
-    """Read a motion with the shared CLI options (progress shown for slow files)."""
-    from usdmotion.cli._progress import progress
-    from usdmotion.io import read_motion
+Skeleton = Annotated[str | None, typer.Option(
+    "--skeleton", help="The ASF skeleton file for .amc input, or the Skeleton prim path for a USD stage with "
+                       "several skeletons.", show_default=False)]
 
-    with progress(f"reading {path.name}"):
-        return read_motion(path, root_offset=root_offset.value, units=units,
-                           up_axis=None if up_axis is None else up_axis.value, lenient=lenient,
-                           ignore_joint_positions=ignore_joint_positions)
+
+@dataclass(frozen=True)
+class ReadOptions:
+    """How to read a motion file: the CLI's reading options, declared once (:func:`reads_motion`).
+
+    ``units`` and ``up_axis`` state what a BVH file does not (and override a USD stage's);
+    ``root_offset`` is ``"auto"``/``"add"``/``"replace"``; see :func:`usdmotion.io.read_motion`.
+    """
+
+    units: str | None = None
+    up_axis: str | None = None
+    root_offset: str = "auto"
+    lenient: bool = False
+    ignore_joint_positions: bool = False
+    skeleton: str | None = None
+
+    def read(self, path: Path):
+        """The motion in ``path`` (progress shown for slow files)."""
+        # Deferred so that loading the CLI (``--version``, ``--help``) does not import NumPy.
+        from usdmotion.cli._progress import progress
+        from usdmotion.io import read_motion
+
+        with progress(f"reading {path.name}"):
+            return read_motion(path, **dataclasses.asdict(self))
+
+
+#: The parameters :func:`reads_motion` adds to a command: (name, annotation, default).
+READ_PARAMETERS = (("units", Units, None), ("up_axis", UpAxis, None), ("root_offset", RootOffset, RootOffsetChoice.auto),
+                   ("lenient", Lenient, False), ("ignore_joint_positions", IgnoreJointPositions, False),
+                   ("skeleton", Skeleton, None))
+
+
+def option_group(parameters: tuple, into: str, group: type) -> Callable[[Callable], Callable]:
+    """A decorator that gives a typer command a group of options declared once.
+
+    ``parameters`` are ``(name, Annotated type, default)``; the command declares a keyword
+    parameter ``into`` and receives ``group(**values)`` there (enum values as their
+    ``.value``). The group's options appear after the command's own in ``--help``.
+    """
+    def decorate(command: Callable) -> Callable:
+        signature = inspect.signature(command, eval_str=True)
+        own = [p for name, p in signature.parameters.items() if name != into]
+        added = [inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=default, annotation=annotation)
+                 for name, annotation, default in parameters]
+
+        @functools.wraps(command)
+        def wrapper(*args, **kwargs):
+            values = {name: kwargs.pop(name) for name, _, _ in parameters}
+            values = {name: v.value if isinstance(v, Enum) else v for name, v in values.items()}
+            return command(*args, **{into: group(**values)}, **kwargs)
+
+        wrapper.__signature__ = signature.replace(parameters=own + added)
+        wrapper.__annotations__ = {p.name: p.annotation for p in own + added}
+        return wrapper
+
+    return decorate
+
+
+#: Gives a command the shared reading options (``--units``, ``--up-axis``, ``--root-offset``,
+#: ``--lenient``, ``--ignore-joint-positions``, ``--skeleton``) as ``read: ReadOptions``; it
+#: reads with ``read.read(path)``.
+reads_motion = option_group(READ_PARAMETERS, "read", ReadOptions)

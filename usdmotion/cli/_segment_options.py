@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from enum import Enum
 from pathlib import Path
 from typing import Annotated
 
 import typer
+
+from usdmotion.cli._options import option_group
 
 
 class MethodChoice(str, Enum):
@@ -33,17 +36,39 @@ Preset = Annotated[str | None, typer.Option(
     show_default=False)]
 
 
-def run_segmentation(motion, source: Path, method: MethodChoice, param: float, cutoff: float, penalty: float,
-                     min_length: float, role: list[str] | None, preset: str | None, refine: bool = True):
-    """Find roles and cut ``motion`` (errors name ``source``)."""
-    from usdmotion.cli._progress import progress
-    from usdmotion.ops.roles import parse_role_overrides
-    from usdmotion.ops.segment import segment
+@dataclass(frozen=True)
+class DetectorOptions:
+    """The detector options of ``segment`` and ``segment-eval``, declared once (:func:`detects_segments`)."""
 
-    with progress(f"segmenting {source.name}"):
-        return segment(motion, method=method.value, param=param, cutoff_hz=cutoff, penalty=penalty,
-                       min_length_s=min_length, refine=refine, roles=parse_role_overrides(role),
-                       preset=preset, source=str(source))
+    param: float = 0.5
+    cutoff: float = 2.0
+    penalty: float = 6.0
+    min_length: float = 1.0
+    refine: bool = True
+    role: list[str] | None = None
+    preset: str | None = None
+
+    def run(self, motion, source: Path, method: MethodChoice):
+        """Find roles and cut ``motion`` with ``method`` (errors name ``source``)."""
+        # Deferred so that loading the CLI does not import NumPy.
+        from usdmotion.cli._progress import progress
+        from usdmotion.ops.segment.detect import segment
+        from usdmotion.ops.segment.roles import parse_role_overrides
+
+        with progress(f"segmenting {source.name}"):
+            return segment(motion, method=method.value, param=self.param, cutoff_hz=self.cutoff,
+                           penalty=self.penalty, min_length_s=self.min_length, refine=self.refine,
+                           roles=parse_role_overrides(self.role), preset=self.preset, source=str(source))
+
+
+#: The parameters :func:`detects_segments` adds to a command: (name, annotation, default).
+DETECTOR_PARAMETERS = (("param", Param, 0.5), ("cutoff", Cutoff, 2.0), ("penalty", Penalty, 6.0),
+                       ("min_length", MinLength, 1.0), ("refine", Refine, True), ("role", Roles, None),
+                       ("preset", Preset, None))
+
+
+#: Gives ``segment`` and ``segment-eval`` the detector options as ``detector: DetectorOptions``.
+detects_segments = option_group(DETECTOR_PARAMETERS, "detector", DetectorOptions)
 
 
 def _setting(key: str, value) -> str:

@@ -10,7 +10,7 @@ import typer
 
 from usdmotion.cli._analysis import (Cutoff, EulerOrder, FileUnits, Filter, FilterChoice, Frames, MotionInput,
                                      SexChoice, body_for, prepare)
-from usdmotion.cli._options import Json, Lenient, RootOffset, RootOffsetChoice, UpAxis, Units
+from usdmotion.cli._options import Json, ReadOptions, reads_motion
 from usdmotion.cli.app import app
 
 
@@ -20,6 +20,7 @@ def _opt(name: str, text: str):
 
 
 @app.command()
+@reads_motion
 def analyze(
     source: MotionInput,
     joints: Annotated[str | None, typer.Option(help="Comma-separated joints to report (default: all).",
@@ -38,23 +39,23 @@ def analyze(
     segments: _opt("--segments", "Segment map (JSON/YAML): landmark overrides or a custom segment table.") = None,
     com: Annotated[bool, typer.Option(help="Compute the centre of mass.")] = True,
     file_units: FileUnits = False,
-    units: Units = None, up_axis: UpAxis = None, root_offset: RootOffset = RootOffsetChoice.auto,
-    lenient: Lenient = False, as_json: Json = False,
+    as_json: Json = False,
+    read: ReadOptions = ReadOptions(),
 ) -> None:
     """Kinematics per joint and frame, centre of mass, summary statistics, tables and plots."""
     from usdmotion.cli._analysis_report import print_summary
-    from usdmotion.ops.analyse import analyse, select_joints
-    from usdmotion.ops.analyse_report import summary as summarise
-    from usdmotion.ops.analyse_report import write_kinematics, write_summary
-    from usdmotion.ops.smoothing import FilterSpec
+    from usdmotion.ops.analyse.measures import analyse, select_joints
+    from usdmotion.ops.analyse.report import summary as summarise
+    from usdmotion.ops.analyse.report import write_kinematics, write_summary
+    from usdmotion.ops.analyse.smoothing import FilterSpec
 
     from usdmotion.kinplot import image_path
-    from usdmotion.ops.analyse_report import table_path
+    from usdmotion.ops.analyse.report import table_path
 
     for path, check in ((out, table_path), (plot, image_path)):  # fail before the work, not after
         if path is not None:
             check(path)
-    motion, first = prepare(source, units, up_axis, root_offset, lenient, frames)
+    motion, first = prepare(source, read, frames)
     body = body_for(motion, source, com, sex, segments)
     kin = analyse(motion, FilterSpec(filter.value, cutoff), euler_order, body, mass, not file_units, first, str(source))
     chosen = select_joints(kin, [j.strip() for j in joints.split(",")] if joints else None, str(source))

@@ -8,7 +8,7 @@ from typing import Annotated
 import typer
 
 from usdmotion.cli._edit import Interp, Joint, Keys, Output, Subtree, parse_keys, run_edit
-from usdmotion.cli._options import InputPath, UpAxis, Units, read_input
+from usdmotion.cli._options import InputPath, ReadOptions, reads_motion
 from usdmotion.cli.app import app
 
 
@@ -18,6 +18,7 @@ def _time(text: str):
 
 
 @app.command()
+@reads_motion
 def blend(
     source: InputPath,
     other: Annotated[Path, typer.Argument(help="The motion to blend into.", show_default=False)],
@@ -37,13 +38,14 @@ def blend(
     joint: Joint = None, subtree: Subtree = False,
     map_joint: Annotated[list[str] | None, typer.Option("--map", help="FIRST=SECOND joint names (repeatable).",
                                                         show_default=False)] = None,
-    interp: Interp = "cubic", units: Units = None, up_axis: UpAxis = None,
+    interp: Interp = "cubic",
+    read: ReadOptions = ReadOptions(),
 ) -> None:
     """Blend FIRST into SECOND over a transition (default: the last 0.5 s of FIRST)."""
     from usdmotion.ops.edit import blend as op
     from usdmotion.ops.edit._common import frames_of
 
-    second = read_input(other, units, up_axis)
+    second = read.read(other)
     mapping = dict(m.split("=", 1) for m in map_joint or [] if "=" in m)
 
     def apply(m):
@@ -52,4 +54,4 @@ def blend(
                   align_channel=align_channel, curve=curve, keys=parse_keys(key, m.fps), method=method, joint=joint,
                   subtree=subtree, joint_map=mapping, interp=interp)
 
-    run_edit(source, output, apply, f"blended into {other.name}", units, up_axis)
+    run_edit(source, output, apply, f"blended into {other.name}", read)

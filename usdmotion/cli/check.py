@@ -9,11 +9,12 @@ from typing import Annotated
 import typer
 
 from usdmotion.cli._analysis import Cutoff, FileUnits, Filter, FilterChoice, Frames, MotionInput, prepare
-from usdmotion.cli._options import Json, Lenient, RootOffset, RootOffsetChoice, UpAxis, Units
+from usdmotion.cli._options import Json, ReadOptions, reads_motion
 from usdmotion.cli.app import app
 
 
 @app.command()
+@reads_motion
 def check(
     source: MotionInput,
     limits: Annotated[Path, typer.Option("--limits", "-l", help="Limits document (JSON/YAML, "
@@ -22,16 +23,16 @@ def check(
     filter: Filter = FilterChoice.butter,
     cutoff: Cutoff = 6.0,
     file_units: FileUnits = False,
-    units: Units = None, up_axis: UpAxis = None, root_offset: RootOffset = RootOffsetChoice.auto,
-    lenient: Lenient = False, as_json: Json = False,
+    as_json: Json = False,
+    read: ReadOptions = ReadOptions(),
 ) -> None:
     """Check joint ranges of motion and speeds against limits; exit code 1 if any is violated."""
     from usdmotion.check import check_motion, load_limits
     from usdmotion.cli._analysis_report import print_violations
-    from usdmotion.ops.smoothing import FilterSpec
+    from usdmotion.ops.analyse.smoothing import FilterSpec
 
     rules = load_limits(limits)
-    motion, first = prepare(source, units, up_axis, root_offset, lenient, frames)
+    motion, first = prepare(source, read, frames)
     found = check_motion(motion, rules, str(limits), filter=FilterSpec(filter.value, cutoff), si=not file_units,
                          first_frame=first)
     if as_json:

@@ -8,26 +8,22 @@ from typing import Annotated
 
 import typer
 
-from usdmotion.cli._options import (IgnoreJointPositions, InputPath, Lenient, RootOffset, RootOffsetChoice, UpAxis,
-                                    UpAxisChoice, Units, read_input)
+from usdmotion.cli._options import InputPath, ReadOptions, UpAxisChoice, reads_motion
 from usdmotion.cli.app import app
 
 
 @app.command()
+@reads_motion
 def convert(
     source: InputPath,
     output: Annotated[Path, typer.Argument(help="Output: .usda, .usdc, .usdz, .usd or .bvh.", show_default=False)],
-    units: Units = None,
-    up_axis: UpAxis = None,
-    root_offset: RootOffset = RootOffsetChoice.auto,
-    lenient: Lenient = False,
-    ignore_joint_positions: IgnoreJointPositions = False,
     validate: Annotated[bool, typer.Option(help="Run pxr.UsdValidation on a USD output.")] = True,
     mesh: Annotated[bool, typer.Option("--mesh", help="Add a volumetric body Mesh skinned to the Skeleton "
                                                       "(USD output only).")] = False,
     to_up_axis: Annotated[UpAxisChoice | None, typer.Option(
         "--to-up-axis", help="Turn the output to this up axis (Y for AR Quick Look); default: keep the input's.",
         case_sensitive=False, show_default=False)] = None,
+    read: ReadOptions = ReadOptions(),
 ) -> None:
     """Convert a motion between BVH and OpenUSD (UsdSkel)."""
     from usdmotion.cli._progress import progress
@@ -37,7 +33,7 @@ def convert(
     if source.resolve() == output.resolve():
         raise OutputError(f"{output}: output would overwrite the input")
     start = time.perf_counter()
-    motion = read_input(source, units, up_axis, root_offset, lenient, ignore_joint_positions)
+    motion = read.read(source)
     if to_up_axis is not None and to_up_axis.value != "auto":
         from usdmotion.ops.up_axis import convert_up_axis
 

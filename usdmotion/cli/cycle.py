@@ -7,11 +7,12 @@ from typing import Annotated
 import typer
 
 from usdmotion.cli._edit import Output, parse_range, run_edit
-from usdmotion.cli._options import InputPath, RootOffset, RootOffsetChoice, UpAxis, Units
+from usdmotion.cli._options import InputPath, ReadOptions, reads_motion
 from usdmotion.cli.app import app
 
 
 @app.command()
+@reads_motion
 def cycle(
     source: InputPath,
     output: Output,
@@ -24,9 +25,7 @@ def cycle(
     offset: Annotated[str, typer.Option(help="Path per loop: rigid (heading and position continue), translation "
                                              "(position only) or none (in place).")] = "rigid",
     method: Annotated[str, typer.Option(help="Rotation cross-fade: slerp or nlerp.")] = "slerp",
-    units: Units = None,
-    up_axis: UpAxis = None,
-    root_offset: RootOffset = RootOffsetChoice.auto,
+    read: ReadOptions = ReadOptions(),
 ) -> None:
     """Make a looping motion (cycle with offset)."""
     from usdmotion.ops.edit import cycle as op
@@ -37,4 +36,4 @@ def cycle(
         n = frames_of(transition, motion.fps, "--transition", allow_zero=False)
         return op(motion, start, stop, transition=n, loops=loops, offset=offset, method=method)
 
-    run_edit(source, output, apply, f"cycled {loops}x", units, up_axis, root_offset)
+    run_edit(source, output, apply, f"cycled {loops}x", read)

@@ -7,13 +7,14 @@ from typing import Annotated
 import typer
 
 from usdmotion.cli._edit import Output, parse_floats, run_edit
-from usdmotion.cli._options import InputPath, RootOffset, RootOffsetChoice, UpAxis, Units
+from usdmotion.cli._options import InputPath, ReadOptions, reads_motion
 from usdmotion.cli.app import app
 
 KeyList = list[str] | None
 
 
 @app.command()
+@reads_motion
 def displace(
     source: InputPath,
     output: Output,
@@ -28,7 +29,7 @@ def displace(
                                                 show_default=False)] = None,
     frame: Annotated[str, typer.Option(help="Rotation changes in the joint's own frame (local) or its "
                                             "parent's.")] = "local",
-    units: Units = None, up_axis: UpAxis = None, root_offset: RootOffset = RootOffsetChoice.auto,
+    read: ReadOptions = ReadOptions(),
 ) -> None:
     """Change a few poses; a smooth spline through the changes edits everything in between."""
     from usdmotion.ops.edit import EditError, displace as op
@@ -46,4 +47,4 @@ def displace(
                              field: parse_floats(values, f"key {spec!r}", (3,))})
         return op(motion, keys, falloff=frames_of(falloff, motion.fps, "--falloff"), frame=frame)
 
-    run_edit(source, output, apply, "displaced", units, up_axis, root_offset)
+    run_edit(source, output, apply, "displaced", read)

@@ -8,18 +8,19 @@ from typing import Annotated
 import typer
 
 from usdmotion.cli._edit import Output, run_edit
-from usdmotion.cli._options import InputPath, RootOffset, RootOffsetChoice, UpAxis, Units, read_input
+from usdmotion.cli._options import InputPath, ReadOptions, reads_motion
 from usdmotion.cli.app import app
 
 
 @app.command()
+@reads_motion
 def edit(
     source: InputPath,
     output: Output,
     pipeline: Annotated[Path, typer.Option(help="JSON list of operations (schemas/edit-pipeline.schema.json).",
                                            show_default=False)],
     verbose: Annotated[bool, typer.Option("--verbose", "-v", help="Print a line per operation.")] = False,
-    units: Units = None, up_axis: UpAxis = None, root_offset: RootOffset = RootOffsetChoice.auto,
+    read: ReadOptions = ReadOptions(),
 ) -> None:
     """Apply an edit pipeline (equalize, reorient, displace, layer, blend, speed, resample, cycle, trim)."""
     from usdmotion.ops.edit.pipeline import load_pipeline, run_pipeline
@@ -32,6 +33,6 @@ def edit(
 
     def apply(motion):
         return run_pipeline(motion, operations, pipeline.resolve().parent, pipeline,
-                            read=lambda p: read_input(p, units, up_axis), on_step=report)
+                            read=read.read, on_step=report)
 
-    run_edit(source, output, apply, f"{len(operations)} operations from {pipeline.name}", units, up_axis, root_offset)
+    run_edit(source, output, apply, f"{len(operations)} operations from {pipeline.name}", read)

@@ -7,11 +7,12 @@ from typing import Annotated
 import typer
 
 from usdmotion.cli._edit import Joint, Output, Subtree, parse_floats, run_edit
-from usdmotion.cli._options import InputPath, RootOffset, RootOffsetChoice, UpAxis, Units
+from usdmotion.cli._options import InputPath, ReadOptions, reads_motion
 from usdmotion.cli.app import app
 
 
 @app.command()
+@reads_motion
 def equalize(
     source: InputPath,
     output: Output,
@@ -22,9 +23,7 @@ def equalize(
     joint: Joint = None,
     subtree: Subtree = False,
     translations: Annotated[bool, typer.Option(help="Also filter the root path and joint translations.")] = True,
-    units: Units = None,
-    up_axis: UpAxis = None,
-    root_offset: RootOffset = RootOffsetChoice.auto,
+    read: ReadOptions = ReadOptions(),
 ) -> None:
     """Equalise a motion: scale the frequency bands of every channel (Bruderlin & Williams)."""
     from usdmotion.ops.edit import equalize as op
@@ -33,4 +32,4 @@ def equalize(
         return op(motion, gains=parse_floats(gains, "--gains"), preset=preset, joint=joint, subtree=subtree,
                   translations=translations)
 
-    run_edit(source, output, apply, f"equalised ({preset or 'gains ' + str(gains)})", units, up_axis, root_offset)
+    run_edit(source, output, apply, f"equalised ({preset or 'gains ' + str(gains)})", read)

@@ -6,23 +6,21 @@ import json
 
 import typer
 
-from usdmotion.cli._options import InputPath, Json, Lenient, RootOffset, RootOffsetChoice, UpAxis, Units, read_input
+from usdmotion.cli._options import InputPath, Json, ReadOptions, reads_motion
 from usdmotion.cli.app import app
 
 
 @app.command()
+@reads_motion
 def info(
     source: InputPath,
-    units: Units = None,
-    up_axis: UpAxis = None,
-    root_offset: RootOffset = RootOffsetChoice.auto,
-    lenient: Lenient = False,
     as_json: Json = False,
+    read: ReadOptions = ReadOptions(),
 ) -> None:
     """Describe a motion file: skeleton, timing, channels and units."""
     from usdmotion.summary import describe
 
-    summary = describe(read_input(source, units, up_axis, root_offset, lenient))
+    summary = describe(read.read(source))
     summary = {"file": str(source), **summary}
     if source.suffix.lower() in (".usd", ".usda", ".usdc", ".usdz"):
         from usdmotion.io.usd import _open_stage

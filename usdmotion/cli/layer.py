@@ -7,11 +7,12 @@ from typing import Annotated
 import typer
 
 from usdmotion.cli._edit import Keys, Output, parse_keys, run_edit
-from usdmotion.cli._options import InputPath, RootOffset, RootOffsetChoice, UpAxis, Units
+from usdmotion.cli._options import InputPath, ReadOptions, reads_motion
 from usdmotion.cli.app import app
 
 
 @app.command()
+@reads_motion
 def layer(
     source: InputPath,
     output: Output,
@@ -23,7 +24,7 @@ def layer(
                                                      "keys.", show_default=False)] = None,
     frame: Annotated[str, typer.Option(help="Rotation axis of the joint's own frame (local) or its "
                                             "parent's.")] = "local",
-    units: Units = None, up_axis: UpAxis = None, root_offset: RootOffset = RootOffsetChoice.auto,
+    read: ReadOptions = ReadOptions(),
 ) -> None:
     """Add a keyed curve (--key FRAME=VALUE, repeatable) to one channel of one joint."""
     from usdmotion.ops.edit import EditError, layer as op
@@ -35,4 +36,4 @@ def layer(
         return op(motion, joint, channel, parse_keys(key, motion.fps),
                   falloff=frames_of(falloff, motion.fps, "--falloff"), frame=frame)
 
-    run_edit(source, output, apply, f"layer on {joint} {channel}", units, up_axis, root_offset)
+    run_edit(source, output, apply, f"layer on {joint} {channel}", read)

@@ -3,17 +3,21 @@
 from __future__ import annotations
 
 import json
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
-import numpy as np
 import typer
 
-from usdmotion.cli._options import InputPath, Json, Lenient, RootOffset, RootOffsetChoice, UpAxis, Units, read_input
+from usdmotion.cli._options import InputPath, Json, ReadOptions, reads_motion
 from usdmotion.cli.app import app
+
+if TYPE_CHECKING:
+    import numpy as np
 
 
 def parse_frames(spec: str, n_frames: int) -> np.ndarray:
     """Frame indices from ``"all"``, ``"0,10,20"``, ``"100:200"`` or ``"0:100:10"`` (end exclusive)."""
+    import numpy as np  # deferred: loading the CLI (every command, --version) must not import NumPy
+
     spec = spec.strip().lower()
     if spec == "all":
         return np.arange(n_frames)
@@ -35,20 +39,20 @@ def parse_frames(spec: str, n_frames: int) -> np.ndarray:
 
 
 @app.command()
+@reads_motion
 def positions(
     source: InputPath,
     frames: Annotated[str, typer.Option(help="Frames: 'all', '0,10,20', '100:200' or '0:1000:10'.")] = "0",
     joints: Annotated[str | None, typer.Option(help="Comma-separated joint names (default: all).")] = None,
-    units: Units = None,
-    up_axis: UpAxis = None,
-    root_offset: RootOffset = RootOffsetChoice.auto,
-    lenient: Lenient = False,
     as_json: Json = False,
+    read: ReadOptions = ReadOptions(),
 ) -> None:
     """Print world joint positions (file units; stage units for USD) at chosen frames."""
+    import numpy as np  # deferred, see parse_frames
+
     from usdmotion.kinematics import joint_positions
 
-    motion = read_input(source, units, up_axis, root_offset, lenient)
+    motion = read.read(source)
     selected = parse_frames(frames, motion.n_frames)
     names = list(motion.joint_names) if joints is None else [n.strip() for n in joints.split(",")]
     index = [motion.joint_index(n) for n in names]

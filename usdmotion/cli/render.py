@@ -7,14 +7,14 @@ from typing import Annotated
 
 import typer
 
-from usdmotion.cli._options import (InputPath, Lenient, RootOffset, RootOffsetChoice, UpAxis, Units, parse_start_stop,
-                                    read_input)
+from usdmotion.cli._options import InputPath, ReadOptions, parse_start_stop, reads_motion
 from usdmotion.cli.app import app
 
 Opt = typer.Option
 
 
 @app.command()
+@reads_motion
 def render(
     source: InputPath,
     output: Annotated[Path, typer.Argument(help="Video (.mp4) or image sequence pattern (frames/####.png, "
@@ -37,10 +37,7 @@ def render(
     shadows: Annotated[bool, Opt(help="Shadows from the key light (about half the speed).")] = False,
     msaa: Annotated[int, Opt(help="Multisample anti-aliasing samples (0 = off, fastest).")] = 0,
     quality: Annotated[int, Opt(help="H.264 CRF (lower = better, larger).")] = 20,
-    units: Units = None,
-    up_axis: UpAxis = None,
-    root_offset: RootOffset = RootOffsetChoice.auto,
-    lenient: Lenient = False,
+    read: ReadOptions = ReadOptions(),
 ) -> None:
     """Render a motion offscreen to a video or image sequence (skinned body, stick figure)."""
     from usdmotion.cli._progress import progress
@@ -48,8 +45,8 @@ def render(
 
     width, height = _size(size)
     start, end = parse_start_stop(frames)
-    motion = read_input(source, units, up_axis, root_offset, lenient)
-    other = read_input(compare, units, up_axis, root_offset, lenient) if compare else None
+    motion = read.read(source)
+    other = read.read(compare) if compare else None
     options = RenderOptions(width=width, height=height, start=start, end=end, fps=fps, speed=speed, camera=camera,
                             style=style, grid=grid, grid_scale=grid_scale, traces=tuple(trace or ()),
                             overlay=overlay, compare_mode=compare_mode, shadows=shadows, msaa=msaa, quality=quality, body=body,

@@ -7,11 +7,12 @@ from typing import Annotated
 import typer
 
 from usdmotion.cli._edit import Output, parse_floats, run_edit
-from usdmotion.cli._options import InputPath, RootOffset, RootOffsetChoice, UpAxis, Units
+from usdmotion.cli._options import InputPath, ReadOptions, reads_motion
 from usdmotion.cli.app import app
 
 
 @app.command()
+@reads_motion
 def reorient(
     source: InputPath,
     output: Output,
@@ -23,9 +24,7 @@ def reorient(
     position: Annotated[str | None, typer.Option(help="New start position: 'X,Z' (Y-up) / 'X,Y' (Z-up) on the "
                                                       "ground, or 'X,Y,Z'.", show_default=False)] = None,
     translate: Annotated[str | None, typer.Option(help="Move by 'X,Y,Z' file units.", show_default=False)] = None,
-    units: Units = None,
-    up_axis: UpAxis = None,
-    root_offset: RootOffset = RootOffsetChoice.auto,
+    read: ReadOptions = ReadOptions(),
 ) -> None:
     """Re-orient and re-position a whole motion (walk south-west instead of north)."""
     from usdmotion.ops.edit import reorient as op
@@ -34,4 +33,4 @@ def reorient(
         return op(motion, rotate=rotate, heading_deg=heading, position=parse_floats(position, "--position", (2, 3)),
                   translate=parse_floats(translate, "--translate", (3,)))
 
-    run_edit(source, output, apply, "re-oriented", units, up_axis, root_offset)
+    run_edit(source, output, apply, "re-oriented", read)

@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from usdmotion.cli._options import InputPath, Lenient, RootOffset, RootOffsetChoice, UpAxis, UpAxisChoice, Units
+from usdmotion.cli._options import InputPath, ReadOptions, UpAxisChoice, reads_motion
 from usdmotion.cli.app import app
 
 
@@ -40,6 +40,7 @@ def _names(values: list[str] | None) -> list[str]:
 
 
 @app.command()
+@reads_motion
 def retarget(
     source: InputPath,
     output: Annotated[Path, typer.Argument(help="Output: .bvh, .usda, .usdc, .usdz or .usd.", show_default=False)],
@@ -69,24 +70,20 @@ def retarget(
     = Init.auto,
     local: Annotated[bool, typer.Option(help="Optimise only joints around changed bones (derived rigs).")] = False,
     report: Annotated[Path | None, typer.Option(help="Write the JSON report here.", show_default=False)] = None,
-    units: Units = None,
-    up_axis: UpAxis = None,
     target_units: Annotated[str | None, typer.Option(help="Length unit of a BVH target (default cm).",
                                                      show_default=False)] = None,
     target_up_axis: Annotated[UpAxisChoice | None, typer.Option(help="Vertical axis of a BVH target (default Y).",
                                                                 show_default=False, case_sensitive=False)] = None,
-    root_offset: RootOffset = RootOffsetChoice.auto,
-    lenient: Lenient = False,
+    read: ReadOptions = ReadOptions(),
 ) -> None:
     """Retarget a motion onto a target skeleton, or onto its own with joints removed/added."""
-    from usdmotion.cli._options import read_input
     from usdmotion.cli._progress import progress
-    from usdmotion.ops.retarget_io import retarget_files
-    from usdmotion.ops.retarget_solve import enable_compilation_cache
+    from usdmotion.ops.retarget.files import retarget_files
+    from usdmotion.ops.retarget.solve import enable_compilation_cache
 
     enable_compilation_cache()
-    motion = drop_meshes(read_input(source, units, up_axis, root_offset, lenient), source)
-    target_motion = None if target is None else read_input(target, target_units, target_up_axis)
+    motion = drop_meshes(read.read(source), source)
+    target_motion = None if target is None else ReadOptions(target_units, None if target_up_axis is None else target_up_axis.value).read(target)
     with progress("retargeting", total=motion.n_frames, unit="frames") as update:
         line = retarget_files(motion, source, output, target_motion, target, _names(remove), add or [], map_file,
                               method.value, iterations, lengths.value, directions.value, scale, init.value, local,

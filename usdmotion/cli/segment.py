@@ -8,9 +8,8 @@ from typing import Annotated
 
 import typer
 
-from usdmotion.cli._options import InputPath, Json, Lenient, RootOffset, RootOffsetChoice, UpAxis, Units, read_input
-from usdmotion.cli._segment_options import (Cutoff, MinLength, Method, MethodChoice, Param, Penalty, Preset, Refine,
-                                            Roles, print_segments, run_segmentation)
+from usdmotion.cli._options import InputPath, Json, ReadOptions, reads_motion
+from usdmotion.cli._segment_options import DetectorOptions, Method, MethodChoice, detects_segments, print_segments
 from usdmotion.cli.app import app
 
 
@@ -21,16 +20,11 @@ class ClipFormat(str, Enum):
 
 
 @app.command()
+@reads_motion
+@detects_segments
 def segment(
     source: InputPath,
     method: Method = MethodChoice.kcpd,
-    param: Param = 0.5,
-    cutoff: Cutoff = 2.0,
-    penalty: Penalty = 6.0,
-    min_length: MinLength = 1.0,
-    refine: Refine = True,
-    role: Roles = None,
-    preset: Preset = None,
     out: Annotated[Path | None, typer.Option(help="Write the segments as JSON here.", show_default=False)] = None,
     plot: Annotated[Path | None, typer.Option(help="Plot the signal and the cuts (.png, .svg, .pdf).",
                                               show_default=False)] = None,
@@ -39,18 +33,16 @@ def segment(
     clip_format: Annotated[ClipFormat, typer.Option("--format", help="Clip format.")] = ClipFormat.bvh,
     at: Annotated[int | None, typer.Option(help="Keep only the action containing this frame (0-based).",
                                            show_default=False)] = None,
-    units: Units = None,
-    up_axis: UpAxis = None,
-    root_offset: RootOffset = RootOffsetChoice.auto,
-    lenient: Lenient = False,
     as_json: Json = False,
+    read: ReadOptions = ReadOptions(),
+    detector: DetectorOptions = DetectorOptions(),
 ) -> None:
     """Segment a motion into primitive actions; export the segments, a plot and clips."""
-    from usdmotion.ops.segment_io import export_clips as write_clips
-    from usdmotion.ops.segment_io import plot_segmentation, write_segments_json
+    from usdmotion.ops.segment.files import export_clips as write_clips
+    from usdmotion.ops.segment.files import plot_segmentation, write_segments_json
 
-    motion = read_input(source, units, up_axis, root_offset, lenient)
-    seg = run_segmentation(motion, source, method, param, cutoff, penalty, min_length, role, preset, refine)
+    motion = read.read(source)
+    seg = detector.run(motion, source, method)
     chosen = None if at is None else seg.segment_at(at, str(source))
     if out is not None:
         write_segments_json(seg, out, str(source), chosen)

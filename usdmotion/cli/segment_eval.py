@@ -8,12 +8,14 @@ from typing import Annotated
 
 import typer
 
-from usdmotion.cli._options import InputPath, Json, Lenient, RootOffset, RootOffsetChoice, UpAxis, Units, read_input
-from usdmotion.cli._segment_options import Cutoff, MinLength, Param, Penalty, Preset, Refine, Roles
+from usdmotion.cli._options import InputPath, Json, ReadOptions, reads_motion
+from usdmotion.cli._segment_options import DetectorOptions, MethodChoice, detects_segments
 from usdmotion.cli.app import app
 
 
 @app.command("segment-eval")
+@reads_motion
+@detects_segments
 def segment_eval(
     source: InputPath,
     labels: Annotated[Path, typer.Argument(help="Labels: groundtruth86-style .json, *_segments.csv, or a "
@@ -22,29 +24,19 @@ def segment_eval(
     first_frame: Annotated[int, typer.Option(help="Label number of the motion's frame 0 (CMU AMC: 1).")] = 1,
     tolerance: Annotated[float, typer.Option(help="A cut matches within its labelled transition band or "
                                                   "this many seconds of the labelled cut.")] = 0.5,
-    param: Param = 0.5,
-    cutoff: Cutoff = 2.0,
-    penalty: Penalty = 6.0,
-    min_length: MinLength = 1.0,
-    refine: Refine = True,
-    role: Roles = None,
-    preset: Preset = None,
-    units: Units = None,
-    up_axis: UpAxis = None,
-    root_offset: RootOffset = RootOffsetChoice.auto,
-    lenient: Lenient = False,
     as_json: Json = False,
+    read: ReadOptions = ReadOptions(),
+    detector: DetectorOptions = DetectorOptions(),
 ) -> None:
     """Score both detectors (kcpd and the paper's heuristic) against labelled cuts."""
-    from usdmotion.cli._segment_options import MethodChoice, run_segmentation
-    from usdmotion.ops.segment_eval import load_labels, score_cuts
+    from usdmotion.ops.segment.evaluate import load_labels, score_cuts
 
     truth = load_labels(labels, trial, 0 if labels.suffix.lower() == ".json" and _is_ours(labels) else first_frame)
-    motion = read_input(source, units, up_axis, root_offset, lenient)
+    motion = read.read(source)
     tol = int(round(tolerance * motion.fps))
     results = {}
     for method in MethodChoice:
-        seg = run_segmentation(motion, source, method, param, cutoff, penalty, min_length, role, preset, refine)
+        seg = detector.run(motion, source, method)
         results[method.value] = {"params": seg.params, **score_cuts(seg.cuts, truth, tol).to_dict()}
     if as_json:
         typer.echo(json.dumps({"file": str(source), "labels": str(labels), "tolerance_frames": tol,

@@ -7,11 +7,12 @@ from typing import Annotated
 import typer
 
 from usdmotion.cli._edit import Interp, Joint, Keys, Output, Subtree, parse_keys, run_edit
-from usdmotion.cli._options import InputPath, RootOffset, RootOffsetChoice, UpAxis, Units
+from usdmotion.cli._options import InputPath, ReadOptions, reads_motion
 from usdmotion.cli.app import app
 
 
 @app.command()
+@reads_motion
 def speed(
     source: InputPath,
     output: Output,
@@ -21,9 +22,7 @@ def speed(
     joint: Joint = None,
     subtree: Subtree = False,
     interp: Interp = "cubic",
-    units: Units = None,
-    up_axis: UpAxis = None,
-    root_offset: RootOffset = RootOffsetChoice.auto,
+    read: ReadOptions = ReadOptions(),
 ) -> None:
     """Change the playing speed; --key SOURCE_FRAME=SPEED (repeatable) gives a smooth speed curve."""
     from usdmotion.ops.edit import speed as op
@@ -32,4 +31,4 @@ def speed(
         return op(motion, factor=factor, keys=parse_keys(key, motion.fps), joint=joint, subtree=subtree,
                   interp=interp)
 
-    run_edit(source, output, apply, f"speed {factor if factor is not None else 'curve'}", units, up_axis, root_offset)
+    run_edit(source, output, apply, f"speed {factor if factor is not None else 'curve'}", read)

@@ -32,7 +32,7 @@ def synth(
         return
     if not outputs and plot is None:
         raise UsdMotionError("nothing to do: name output files (.bvh, .usdz ...) and/or --plot FILE.png")
-    motion = read_any(source, None, None)
+    motion = read_any(source)
     for output in outputs or []:
         write_motion(motion, output)
         typer.echo(f"wrote {output}: {motion.n_joints} joints, {motion.n_frames} frames at {motion.fps:g} fps")

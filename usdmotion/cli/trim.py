@@ -7,19 +7,18 @@ from typing import Annotated
 import typer
 
 from usdmotion.cli._edit import Output, parse_range, run_edit
-from usdmotion.cli._options import InputPath, RootOffset, RootOffsetChoice, UpAxis, Units
+from usdmotion.cli._options import InputPath, ReadOptions, reads_motion
 from usdmotion.cli.app import app
 
 
 @app.command()
+@reads_motion
 def trim(
     source: InputPath,
     output: Output,
     frames: Annotated[str, typer.Option(help="START:STOP, stop exclusive, frames or seconds (1.5s); negative "
                                              "counts from the end; either may be empty.", show_default=False)],
-    units: Units = None,
-    up_axis: UpAxis = None,
-    root_offset: RootOffset = RootOffsetChoice.auto,
+    read: ReadOptions = ReadOptions(),
 ) -> None:
     """Cut a motion down to frames START..STOP-1 (BVH Euler values kept as read)."""
     from usdmotion.ops.edit import trim as op
@@ -27,4 +26,4 @@ def trim(
     def apply(motion):
         return op(motion, *parse_range(frames, motion.fps))
 
-    run_edit(source, output, apply, f"trimmed to {frames}", units, up_axis, root_offset)
+    run_edit(source, output, apply, f"trimmed to {frames}", read)

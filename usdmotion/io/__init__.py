@@ -9,6 +9,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from usdmotion.channels import override_units_axis
 from usdmotion.errors import InputError, OutputError
 from usdmotion.motion import Motion
 
@@ -37,16 +38,19 @@ def read_motion(path: str | os.PathLike, root_offset: str = "auto", units: str |
     For BVH, ``units`` (default ``"cm"``) and ``up_axis`` (default ``"Y"``) state what the
     file does not; ``"auto"`` guesses them from the body (:mod:`usdmotion.units_guess`,
     with a warning giving the reason). For USD they come from the stage and, if given
-    (not ``"auto"``), override it; ``skeleton`` picks the Skeleton prim of a stage with
-    several and ``resample`` reads unevenly spaced time samples at even steps. Either
-    way a human skeleton whose height in the chosen units is outside 0.5–3 m warns.
+    (not ``"auto"``), override it. ``skeleton`` names the ASF skeleton file of ``.amc``
+    input or the Skeleton prim path of a USD stage with several skeletons; inputs that
+    cannot take it raise ``InputError``. ``resample`` reads a USD animation's unevenly
+    spaced time samples at even steps. Either way a human skeleton whose height in the
+    chosen units is outside 0.5–3 m warns.
     """
-    import dataclasses
-
     from usdmotion.units_guess import apply_body_guess
 
     path = Path(path)
     kind = _kind(path)
+    if skeleton is not None:
+        if kind == "bvh":
+            raise InputError(path, "--skeleton does not apply to BVH input (a BVH file holds one skeleton)")
     if kind == "bvh":
         from usdmotion.io.bvh import read_bvh
 
@@ -55,16 +59,10 @@ def read_motion(path: str | os.PathLike, root_offset: str = "auto", units: str |
                           ignore_joint_positions=ignore_joint_positions)
         return apply_body_guess(motion, path, _is_auto(units), _is_auto(up_axis))
     if kind == "usd":
-        from usdmotion.io.bvh import resolve_units
         from usdmotion.io.usd import read_usd
 
         motion = read_usd(path, skeleton=skeleton, resample=resample)
-        changes = {}
-        if units is not None and not _is_auto(units):
-            changes["meters_per_unit"] = resolve_units(units)
-        if up_axis is not None and not _is_auto(up_axis):
-            changes["up_axis"] = up_axis
-        motion = dataclasses.replace(motion, **changes) if changes else motion
+        motion = override_units_axis(motion, None if _is_auto(units) else units, None if _is_auto(up_axis) else up_axis)
         return apply_body_guess(motion, path, False, False)
     raise InputError(path, f"unknown input format {path.suffix!r} (use .bvh, {', '.join(USD_EXTENSIONS)})")
 
@@ -74,7 +72,7 @@ def write_motion(motion: Motion, path: str | os.PathLike, **options) -> Path:
     path = Path(path)
     kind = _kind(path)
     if kind == "bvh":
-        from usdmotion.io.bvh import write_bvh
+        from usdmotion.io.bvh_write import write_bvh
 
         if motion.meshes:
             import warnings

@@ -1,4 +1,4 @@
-"""BVH reading and writing: ``parse_bvh`` → ``BvhData`` → ``Motion`` → ``write_bvh``.
+"""BVH reading: ``parse_bvh`` → ``BvhData`` → ``Motion`` (writing: :mod:`usdmotion.io.bvh_write`).
 
 Conventions (see README "Conventions"):
 
@@ -19,7 +19,6 @@ Conventions (see README "Conventions"):
 
 from __future__ import annotations
 
-import dataclasses
 import os
 import re
 import warnings
@@ -28,18 +27,14 @@ from pathlib import Path
 
 import numpy as np
 
-from usdmotion.constants import MAX_FRAMES, METERS_PER_UNIT
+from usdmotion.constants import MAX_FRAMES
+from usdmotion.channels import channel_columns, euler_columns, resolve_units, rotation_order
 from usdmotion.errors import BvhParseError, UsdMotionWarning
-from usdmotion.io.atomic import atomic_output
-from usdmotion.io.bvh_header import BvhHeader, frame_rate, frame_time_text, header_arrays, parse_header
+from usdmotion.io.bvh_header import BvhHeader, frame_rate, header_arrays, parse_header
 from usdmotion.io.bvh_rows import line_of_row, parse_rows
 from usdmotion.motion import POSITION_CHANNELS, ROTATION_CHANNELS, Motion, RootOffset
 from usdmotion.parallel import over_slices
-from usdmotion.rotations import half_angles_to_quat, quat_to_euler
-
-DEFAULT_ROOT_CHANNELS = ("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation")
-DEFAULT_JOINT_CHANNELS = ("Zrotation", "Xrotation", "Yrotation")
-
+from usdmotion.rotations import half_angles_to_quat
 
 @dataclass(frozen=True)
 class BvhData:
@@ -198,34 +193,13 @@ def parse_bvh(text: str | bytes, path: str | os.PathLike | None = None, lenient:
     )
 
 
-def _channel_columns(channels: tuple[tuple[str, ...], ...]) -> list[dict[str, int]]:
-    """Per joint, channel name → column index in the ``(F, C)`` value array."""
-    columns, k = [], 0
-    for names in channels:
-        columns.append({name: k + i for i, name in enumerate(names)})
-        k += len(names)
-    return columns
-
-
-def rotation_order(names: tuple[str, ...]) -> str:
-    """Euler order of a joint's channel list: rotation channels in listed order, then
-    the missing axes (whose angles are zero), e.g. ``("Zrotation",)`` → ``"ZXY"``."""
-    present = "".join(n[0] for n in names if n in ROTATION_CHANNELS)
-    return present + "".join(a for a in "XYZ" if a not in present)
-
-
-def _euler_columns(columns: dict[str, int], order: str, missing: int) -> np.ndarray:
-    """Column index of each axis of ``order`` (``missing`` for axes without a channel)."""
-    return np.array([columns.get(f"{axis}rotation", missing) for axis in order])
-
-
 def rotations_from_channels(values: np.ndarray, channels: tuple[tuple[str, ...], ...]) -> np.ndarray:
     """Local rotations ``(F, J, 4)`` wxyz from channel values ``(F, C)`` in degrees.
 
     Joints sharing an Euler order are converted together (at most six groups).
     """
     n_frames, n_joints = values.shape[0], len(channels)
-    columns = _channel_columns(channels)
+    columns = channel_columns(channels)
     rotations = np.zeros((n_frames, n_joints, 4))
     rotations[..., 0] = 1.0
     groups: dict[str, list[int]] = {}
@@ -234,7 +208,7 @@ def rotations_from_channels(values: np.ndarray, channels: tuple[tuple[str, ...],
             groups.setdefault(rotation_order(names), []).append(j)
     half_per_degree = 0.5 * np.pi / 180.0
     for order, joints in groups.items():
-        gather = np.stack([_euler_columns(columns[j], order, -1) for j in joints])  # (G, 3), -1 = no channel
+        gather = np.stack([euler_columns(columns[j], order, -1) for j in joints])  # (G, 3), -1 = no channel
         missing = gather < 0
         safe = np.maximum(gather, 0)
 
@@ -268,7 +242,7 @@ def guess_root_offset(data: BvhData) -> RootOffset:
     means the channels are absolute positions (adding would double them).
     """
     offset = data.offsets[0]
-    columns = _channel_columns(data.channels)[0]
+    columns = channel_columns(data.channels)[0]
     axis = int(np.argmax(np.abs(offset)))
     name = POSITION_CHANNELS[axis]
     if offset[axis] == 0.0 or name not in columns or data.values.shape[0] == 0:
@@ -324,7 +298,7 @@ def motion_from_bvh(data: BvhData, root_offset: str = "auto", meters_per_unit: f
     if root_offset == "auto":
         root_offset = guess_root_offset(data)
     values = data.values
-    columns = _channel_columns(data.channels)
+    columns = channel_columns(data.channels)
     rotations = rotations_from_channels(values, data.channels)
     root_translation = _positions(values, columns[0], data.offsets[0], add=root_offset == "add")
     joint_translations = None
@@ -361,24 +335,6 @@ def motion_from_bvh(data: BvhData, root_offset: str = "auto", meters_per_unit: f
     return motion
 
 
-def resolve_units(units: str | float) -> float:
-    """Metres per unit from a name (``cm``, ``m``, ``mm``, ``in``, ``ft``, ``asf``) or a number."""
-    if isinstance(units, (int, float)):
-        value = float(units)
-    else:
-        key = str(units).strip().lower()
-        if key in METERS_PER_UNIT:
-            return METERS_PER_UNIT[key]
-        try:
-            value = float(key)
-        except ValueError:
-            raise ValueError(f"unknown units {units!r}: use one of {', '.join(METERS_PER_UNIT)} "
-                             "or metres per unit as a number") from None
-    if not (np.isfinite(value) and value > 0):
-        raise ValueError(f"units must be a positive number of metres per unit, got {units!r}")
-    return value
-
-
 def read_bvh(path: str | os.PathLike, root_offset: str = "auto", units: str | float = "cm",
              up_axis: str = "Y", lenient: bool = False, ignore_joint_positions: bool = False) -> Motion:
     """Read a BVH file into a :class:`Motion` (see :func:`parse_bvh`, :func:`motion_from_bvh`)."""
@@ -390,159 +346,3 @@ def read_bvh(path: str | os.PathLike, root_offset: str = "auto", units: str | fl
     data = parse_bvh(raw, path, lenient=lenient)
     return motion_from_bvh(data, root_offset=root_offset, meters_per_unit=resolve_units(units), up_axis=up_axis,
                            ignore_joint_positions=ignore_joint_positions)
-
-
-# --------------------------------------------------------------------------- writing
-
-
-def default_channels(motion: Motion) -> tuple[tuple[str, ...], ...]:
-    """A BVH channel layout for a motion read from elsewhere (USD, synthesis).
-
-    Root: 3 positions + ZXY rotations; joints with per-frame translations: the same;
-    other joints: ZXY rotations; end sites: none.
-    """
-    moving = np.zeros(motion.n_joints, bool)
-    if motion.joint_translations is not None:
-        deviation = np.abs(motion.joint_translations - motion.offsets[None]).max(axis=(0, 2))
-        moving = deviation > 1e-9
-    layout = []
-    for j in range(motion.n_joints):
-        if j == 0 or moving[j]:
-            layout.append(DEFAULT_ROOT_CHANNELS)
-        elif motion.end_sites[j]:
-            layout.append(())
-        else:
-            layout.append(DEFAULT_JOINT_CHANNELS)
-    return tuple(layout)
-
-
-def channel_values(motion: Motion, channels: tuple[tuple[str, ...], ...]) -> np.ndarray:
-    """Channel values ``(F, C)`` (degrees, file units) of a motion for a channel layout.
-
-    Euler angles take the branch closest to ``motion.source_channels`` when it matches
-    the layout (lossless round trips), else are unwrapped over time.
-    """
-    columns = _channel_columns(channels)
-    n_channels = sum(len(c) for c in channels)
-    out = np.zeros((motion.n_frames, n_channels))
-    translations = motion.joint_translations
-    for j, names in enumerate(channels):
-        if not any(n in POSITION_CHANNELS for n in names):
-            continue
-        if j == 0:
-            pos = motion.root_translation - (motion.offsets[0] if motion.root_offset == "add" else 0.0)
-        else:
-            pos = motion.offsets[j][None] if translations is None else translations[:, j]
-        for axis, name in enumerate(POSITION_CHANNELS):
-            if name in columns[j]:
-                out[:, columns[j][name]] = np.broadcast_to(pos[:, axis] if pos.ndim == 2 else pos[0, axis],
-                                                           (motion.n_frames,))
-    reference = motion.source_channels
-    if reference is not None and (motion.channels != channels or reference.shape[1] != n_channels):
-        reference = None
-    groups: dict[str, list[int]] = {}
-    for j, names in enumerate(channels):
-        if any(n in ROTATION_CHANNELS for n in names):
-            groups.setdefault(rotation_order(names), []).append(j)
-    for order, joints in groups.items():
-        cols = np.stack([_euler_columns(columns[j], order, -1) for j in joints])  # (G, 3)
-        ref = None
-        if reference is not None:
-            ref = np.deg2rad(np.where(cols[None] >= 0, reference[:, np.maximum(cols, 0)], 0.0))
-        angles = np.rad2deg(quat_to_euler(motion.rotations[:, joints], order, reference=ref))
-        present = cols >= 0
-        frame_idx = np.arange(motion.n_frames)[:, None]
-        for g in range(len(joints)):
-            out[frame_idx, cols[g][present[g]][None]] = angles[:, g][:, present[g]]
-    return out
-
-
-def _dfs_order(parents: np.ndarray) -> list[int]:
-    children: dict[int, list[int]] = {}
-    for j, p in enumerate(parents):
-        children.setdefault(int(p), []).append(j)
-    order, stack = [], [0]
-    while stack:
-        j = stack.pop()
-        order.append(j)
-        stack.extend(reversed(children.get(j, [])))
-    return order
-
-
-def _fmt(x: float, decimals: int = 9) -> str:
-    """Shortest text that reads back as ``x`` rounded to ``decimals`` (no ``-0``)."""
-    return repr(round(float(x), decimals) + 0.0)
-
-
-def bvh_text(motion: Motion, decimals: int = 9) -> str:
-    """The BVH file for a motion, as text (``\\n`` line ends).
-
-    A motion read from BVH is written with its own layout and root-offset convention. A
-    motion without a layout (USD, synthesis) gets :func:`default_channels` and a zero
-    root OFFSET with absolute root positions, which readers of either root-offset
-    convention interpret the same way.
-    """
-    if motion.channels is None:
-        offsets = motion.offsets.copy()
-        offsets[0] = 0.0
-        motion = dataclasses.replace(motion, offsets=offsets, root_offset="add",
-                                     channels=default_channels(motion), source_channels=None)
-    channels = motion.channels
-    order = _dfs_order(motion.parents)
-    lines = ["HIERARCHY"]
-    depth_of = {0: 0}
-    open_stack: list[int] = []
-    column_order: list[int] = []
-    starts = np.cumsum([0] + [len(c) for c in channels])
-    for j in order:
-        parent = int(motion.parents[j])
-        while open_stack and open_stack[-1] != parent:
-            open_stack.pop()
-            lines.append("  " * len(open_stack) + "}")
-        depth = len(open_stack)
-        depth_of[j] = depth
-        pad = "  " * depth
-        offset = " ".join(_fmt(v, decimals) for v in motion.offsets[j])
-        if motion.end_sites[j] and not channels[j]:
-            lines += [f"{pad}End Site", f"{pad}{{", f"{pad}  OFFSET {offset}"]
-        else:
-            keyword = "ROOT" if j == 0 else "JOINT"
-            lines += [f"{pad}{keyword} {motion.joint_names[j]}", f"{pad}{{", f"{pad}  OFFSET {offset}"]
-            if channels[j] or j == 0:
-                lines.append(f"{pad}  CHANNELS {len(channels[j])} {' '.join(channels[j])}".rstrip())
-            column_order.extend(range(starts[j], starts[j + 1]))
-        open_stack.append(j)
-    while open_stack:
-        open_stack.pop()
-        lines.append("  " * len(open_stack) + "}")
-    values = channel_values(motion, channels)[:, column_order]
-    lines += ["MOTION", f"Frames: {motion.n_frames}", f"Frame Time: {frame_time_text(motion.fps)}"]
-    return "\n".join(lines) + "\n" + _rows_text(np.round(values, decimals) + 0.0)
-
-
-def _rows_text(values: np.ndarray) -> str:
-    """Rows of space-separated shortest round-trip floats (pyarrow's CSV writer)."""
-    if values.size == 0:
-        return ""
-    import pyarrow as pa
-    import pyarrow.csv as pcsv
-
-    table = pa.table({f"c{k}": values[:, k] for k in range(values.shape[1])})
-    sink = pa.BufferOutputStream()
-    pcsv.write_csv(table, sink, write_options=pcsv.WriteOptions(include_header=False, delimiter=" ",
-                                                                 quoting_style="none"))
-    return sink.getvalue().to_pybytes().decode("ascii")
-
-
-def write_bvh(motion: Motion, path: str | os.PathLike, decimals: int = 9) -> Path:
-    """Write ``motion`` as BVH (atomically: temp file, then rename).
-
-    Uses the channel layout the motion was read with (``motion.channels``), else
-    :func:`default_channels`; joints are written in depth-first order. Values are
-    rounded to ``decimals`` decimals.
-    """
-    text = bvh_text(motion, decimals=decimals)
-    path = Path(path)
-    with atomic_output(path) as tmp:
-        tmp.write_text(text, encoding="utf-8")
-    return path

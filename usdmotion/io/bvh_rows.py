@@ -53,8 +53,14 @@ def _arrow_parse(buf: bytes, n_channels: int) -> np.ndarray | None:
         return None
     out = np.empty((table.num_rows, n_channels), dtype=np.float64)
     for k, column in enumerate(table.columns):
-        out[:, k] = column.to_numpy()
+        out[:, k] = np.concatenate([_float64_values(chunk) for chunk in column.chunks]) if column.chunks else []
     return out
+
+
+def _float64_values(chunk) -> np.ndarray:
+    """The values of a null-free float64 pyarrow array, read from its data buffer:
+    ``Array.to_numpy`` would import pandas (0.16 s of start-up) for nothing."""
+    return np.frombuffer(chunk.buffers()[1], dtype=np.float64, count=len(chunk), offset=chunk.offset * 8)
 
 
 def normalize_whitespace(buf: bytes) -> bytes:

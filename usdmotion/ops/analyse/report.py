@@ -18,7 +18,7 @@ import numpy as np
 
 from usdmotion.errors import OutputError
 from usdmotion.io.atomic import atomic_output
-from usdmotion.ops.analyse import AXES, Kinematics
+from usdmotion.ops.analyse.measures import AXES, Kinematics
 
 TABLE_FORMATS = (".csv", ".parquet", ".json")
 

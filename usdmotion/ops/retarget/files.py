@@ -8,7 +8,7 @@ from pathlib import Path
 
 from usdmotion.errors import OutputError
 from usdmotion.motion import Motion
-from usdmotion.ops.hierarchy import RetargetError, parse_add
+from usdmotion.ops.retarget.hierarchy import RetargetError, parse_add
 
 
 def parse_scale(text) -> str | float:
@@ -38,8 +38,8 @@ def retarget_files(source: Motion, source_path: Path, output: Path, target: Moti
     """
     from usdmotion.io import BVH_EXTENSIONS, USD_EXTENSIONS, write_motion
     from usdmotion.io.atomic import atomic_output
-    from usdmotion.ops.jointmap import load_joint_map
-    from usdmotion.ops.retarget import retarget
+    from usdmotion.ops.retarget.jointmap import load_joint_map
+    from usdmotion.ops.retarget.pipeline import retarget
 
     output = Path(output)
     if output.suffix.lower() not in BVH_EXTENSIONS + USD_EXTENSIONS:

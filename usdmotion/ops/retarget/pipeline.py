@@ -4,9 +4,9 @@ positions as close as possible to the original (ALGORITHMS.md §1).
 Pipeline (``retarget``):
 
 1. **Target rig** — from a BVH/USD file, or derived from the source by removing joints
-   (children re-parented to the parent) and adding joints (:mod:`usdmotion.ops.hierarchy`).
+   (children re-parented to the parent) and adding joints (:mod:`usdmotion.ops.retarget.hierarchy`).
 2. **Joint map** — which source joint each target joint is compared with
-   (:mod:`usdmotion.ops.jointmap`). Across rigs the source positions are first brought
+   (:mod:`usdmotion.ops.retarget.jointmap`). Across rigs the source positions are first brought
    into the target's frame: up axis converted, then scaled (``scale="units"``: the
    unit ratio, physical size kept; ``"auto"``: to the target's size; or a number).
 3. **Step 1, offsets** — each mapped bone's length = the mean over frames of the source
@@ -15,7 +15,7 @@ Pipeline (``retarget``):
    the source bone in its new parent's frame (``directions="mean"``, default) or the
    rest-pose composition (``"rest"``, the paper's "direction kept").
 4. **Step 2, rotations** — initial guess (copied/composed source rotations or "aim each
-   bone at its source direction"), then :mod:`usdmotion.ops.retarget_solve` (LM by
+   bone at its source direction"), then :mod:`usdmotion.ops.retarget.solve` (LM by
    default, the paper's Adam as reference) over all frames at once.
 
 The loss compares, per frame, the world positions of the mapped target joints with the
@@ -29,12 +29,17 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from usdmotion.channels import rotation_order
 from usdmotion.kinematics import fk_arrays, world_rotations_positions
 from usdmotion.motion import POSITION_CHANNELS, Motion
-from usdmotion.ops.hierarchy import (Rig, RetargetError, UnitsMismatchError, adapt_offsets, ancestor_matrix,
+from usdmotion.ops.retarget.hierarchy import (Rig, RetargetError, UnitsMismatchError, adapt_offsets, ancestor_matrix,
                                      derive_rig, mapped_chains, rig_from_motion, source_bone_lengths)
-from usdmotion.ops.jointmap import JointMap, resolve_map
-from usdmotion.rotations import quat_between, quat_conjugate, quat_mul, quat_rotate
+from usdmotion.ops.retarget import report as retarget_report
+from usdmotion.ops.retarget.jointmap import JointMap, resolve_map
+from usdmotion.ops.retarget.losses import frame_losses
+from usdmotion.ops.retarget.problem import Problem
+from usdmotion.ops.retarget.solve import solve
+from usdmotion.rotations import matrix_to_quat, quat_between, quat_conjugate, quat_mul, quat_rotate
 
 METHODS = ("lm", "adam")
 #: Sizes (target / source, after unit conversion) outside this range mean the units disagree.
@@ -86,18 +91,6 @@ def _up_rotation(source_up: str, target_up: str) -> np.ndarray | None:
         return None
     half = np.sqrt(0.5)
     return np.array([half, half, 0.0, 0.0]) if target_up == "Z" else np.array([half, -half, 0.0, 0.0])
-
-
-def frame_losses(offsets_or_t: np.ndarray, rotations: np.ndarray, parents: np.ndarray, mapped: np.ndarray,
-                 targets: np.ndarray, weights: np.ndarray) -> np.ndarray:
-    """Per-frame loss ``(F,)``: ``Σ_m w_m ‖p_m − target_m‖²`` with NumPy float64 FK.
-
-    ``offsets_or_t`` is ``(F, J, 3)`` local translations (root: world position);
-    ``targets`` ``(F, J, 3)`` indexed by target joint.
-    """
-    _, world_p = fk_arrays(rotations, offsets_or_t, parents)
-    d = world_p[:, mapped] - targets[:, mapped]
-    return np.einsum("fmk,fmk,m->f", d, d, weights[mapped])
 
 
 # ------------------------------------------------------------------------- setup
@@ -350,7 +343,7 @@ def aim_init(setup: Setup) -> np.ndarray:
 
 def _aim(parent_q, origin, rays, targets) -> np.ndarray:
     """World rotation ``(F, 4)`` aiming rest vectors (joint frame) at target directions."""
-    from usdmotion.rotations import matrix_to_quat
+
 
     u = np.stack([v for _, v in rays])  # (R, 3) joint frame
     v = np.stack([targets[:, d] - origin for d, _ in rays], axis=1)  # (F, R, 3) world
@@ -385,9 +378,6 @@ def _choose_init(setup: Setup, init: str, method: str) -> str:
 
 
 def _problem(setup: Setup):
-    from usdmotion.io.bvh import rotation_order
-    from usdmotion.ops.retarget_solve import Problem
-
     channels = setup.rig.channels
     orders = tuple(rotation_order(channels[j]) if channels is not None and channels[j] else "ZXY"
                    for j in setup.rot_joints)
@@ -406,7 +396,7 @@ def retarget(source: Motion, target: Motion | None = None, *, remove=(), add=(),
         source: the motion to transfer.
         target: the target skeleton, or ``None`` to derive it from the source.
         remove: joint names to remove (children are re-parented to the parent).
-        add: :class:`usdmotion.ops.hierarchy.AddSpec` s of joints to add.
+        add: :class:`usdmotion.ops.retarget.hierarchy.AddSpec` s of joints to add.
         joint_map: target → source joint map (default: identity for derived rigs,
             automatic otherwise).
         method: ``"lm"`` (default) or ``"adam"`` (the paper's reference).
@@ -425,9 +415,6 @@ def retarget(source: Motion, target: Motion | None = None, *, remove=(), add=(),
         units and up axis; the source's frame rate) and the report described in
         ``docs/retarget.md``.
     """
-    from usdmotion.ops import retarget_report
-    from usdmotion.ops.retarget_solve import solve
-
     start = time.perf_counter()
     if method not in METHODS:
         raise RetargetError(f"unknown method {method!r} (choose from {', '.join(METHODS)})")

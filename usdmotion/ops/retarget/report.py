@@ -9,8 +9,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from usdmotion.kinematics import local_translations
+from usdmotion.kinematics import fk_arrays, local_translations
 from usdmotion.motion import Motion
+from usdmotion.ops.retarget.losses import frame_losses
+from usdmotion.ops.retarget.problem import ADAM_ITERATIONS, LM_ITERATIONS
+from usdmotion.ops.retarget.solve import device_description
 
 
 def loss_stats(per_frame: np.ndarray, n_mapped: int) -> dict:
@@ -33,9 +36,6 @@ def largest_rotation_changes(rotations: np.ndarray, names, count: int = 5) -> di
 def build(source: Motion, setup, motion: Motion, q0: np.ndarray, init_name: str, method: str,
           iterations: int | None, times: dict, source_path: str | None, target_path: str | None) -> dict:
     """The report of a finished retargeting (see ``docs/retarget.md``)."""
-    from usdmotion.ops.retarget import frame_losses
-    from usdmotion.ops.retarget_solve import ADAM_ITERATIONS, LM_ITERATIONS, device_description
-
     rig, mapped, names = setup.rig, setup.mapped, setup.rig.joint_names
     args = (rig.parents, mapped, setup.targets, setup.weights)
     final_t = local_translations(motion)
@@ -47,8 +47,6 @@ def build(source: Motion, setup, motion: Motion, q0: np.ndarray, init_name: str,
         loss["copied"] = loss_stats(copied, len(mapped))
         loss["final_over_copied"] = float(final.sum() / copied.sum()) if copied.sum() > 0 else 0.0
     loss["final_over_initial"] = float(final.sum() / initial.sum()) if initial.sum() > 0 else 0.0
-    from usdmotion.kinematics import fk_arrays
-
     world = fk_arrays(motion.rotations, final_t, rig.parents)[1]
     err = np.linalg.norm(world[:, mapped] - setup.targets[:, mapped], axis=-1)
     before = np.linalg.norm(rig.offsets, axis=1)

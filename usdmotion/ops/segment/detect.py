@@ -32,7 +32,7 @@ import numpy as np
 from usdmotion.errors import InputError
 from usdmotion.kinematics import fk_arrays, local_translations
 from usdmotion.motion import Motion
-from usdmotion.ops.roles import LIMB_BONES, find_roles
+from usdmotion.ops.segment.roles import LIMB_BONES, find_roles
 
 METHODS = ("kcpd", "heuristic")
 DEFAULT_METHOD = "kcpd"
@@ -64,7 +64,7 @@ class Segmentation:
         fps: frames per second.
         method: ``"kcpd"`` or ``"heuristic"``.
         params: the detector's parameters (JSON-ready).
-        angles: ``(F, 8)`` bone angles θ in radians, order of :data:`~usdmotion.ops.roles.LIMB_BONES`.
+        angles: ``(F, 8)`` bone angles θ in radians, order of :data:`~usdmotion.ops.segment.roles.LIMB_BONES`.
         signal: ``(F,)`` the norm signal ``Q = ‖θ‖``.
         filtered: ``(F,)`` ``Q`` after the low-pass filter.
         candidates: ``(C,)`` the paper's candidate cuts on ``filtered`` (for the plot).
@@ -315,7 +315,7 @@ def segment(motion: Motion, method: str = DEFAULT_METHOD, param: float = DEFAULT
         refine: kcpd: move each cut to the nearest local minimum of the bone energy
             (:func:`refine_to_rest`, at most 0.5 s).
         roles: ``{role: joint name}`` overrides for the role map.
-        preset: force a role preset (:data:`~usdmotion.ops.roles.PRESET_NAMES`).
+        preset: force a role preset (:data:`~usdmotion.ops.segment.roles.PRESET_NAMES`).
         source: file name for messages.
     """
     if method not in METHODS:

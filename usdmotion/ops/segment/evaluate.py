@@ -249,7 +249,7 @@ def reordered_take(motion, labels: Labels, order, margin_frames: int = 0, blend_
     Returns:
         ``(take, labels)`` as :func:`synthetic_take`.
     """
-    from usdmotion.ops.segment import clip
+    from usdmotion.ops.segment.detect import clip
 
     ranges = activity_ranges(labels, motion.n_frames, margin_frames)
     order = [int(i) for i in order]

@@ -16,7 +16,7 @@ Methods:
   ``q_j ← q_j · exp(R(W_j)ᵀ ω_j)``; the Jacobian is analytic,
   ``∂p_m/∂ω_j = [p_j − p_m]_×`` for every mapped descendant ``m`` of ``j`` (and the
   identity for free translations). The damped normal equations are solved on the
-  joint tree in O(joints) (:mod:`usdmotion.ops.retarget_tree`); the dense Cholesky
+  joint tree in O(joints) (:mod:`usdmotion.ops.retarget.tree_step`); the dense Cholesky
   form is kept as a reference (``linear="dense"``). Steps are accepted per frame only
   when they lower the loss, so the current iterate is always the best one seen.
 * ``adam``: the paper's reference: Adam (lr 0.1, 500 iterations, Kingma–Ba defaults)
@@ -31,73 +31,23 @@ chunk size (frames are solved in fixed-size chunks, the last one padded).
 
 from __future__ import annotations
 
+import os
+import time
 from dataclasses import dataclass
+from pathlib import Path
+
 import numpy as np
 
 from usdmotion.kinematics import fk_arrays
-from usdmotion.rotations import euler_to_quat, quat_exp, quat_mul, quat_normalize, quat_rotate
+from usdmotion.ops.retarget.hierarchy import ancestor_matrix
+from usdmotion.ops.retarget.problem import (ADAM_ITERATIONS, ADAM_LR, LM_ATOL, LM_DIAG_FLOOR, LM_DOWN, LM_ITERATIONS,
+                                            LM_LAMBDA0, LM_LAMBDA_MAX, LM_LAMBDA_MIN, LM_NULL_DAMPING, LM_RTOL,
+                                            LM_RTOL_TOTAL, LM_UP, Problem, masks)
+from usdmotion.ops.retarget.tree_step import make_tree_step
+from usdmotion.rotations import euler_to_quat, quat_exp, quat_mul, quat_normalize, quat_rotate, quat_to_euler
 
-#: Levenberg–Marquardt damping: start, factor down on success / up on failure, bounds.
-LM_LAMBDA0 = 1e-2
-LM_DOWN, LM_UP = 0.2, 5.0
-LM_LAMBDA_MIN, LM_LAMBDA_MAX = 1e-5, 1e8
-#: Floor of the damping matrix relative to the mean curvature of each joint.
-LM_DIAG_FLOOR = 1e-3
-#: Damping not scaled by λ (relative to each joint's mean curvature): a fixed trust region
-#: that keeps steps out of the loss's null space (the twist of a bone with one mapped
-#: child), so twists stay as smooth over time as the initial guess instead of drifting
-#: on float32 noise; it slows well-determined directions by ~0.1 %.
-LM_NULL_DAMPING = 1e-3
-ADAM_LR = 0.1
-#: LM stops when every frame of a chunk went two iterations without gaining LM_RTOL (relative)
-#: or when the chunk's total loss gained less than LM_RTOL_TOTAL twice in a row; at most
-#: LM_ITERATIONS iterations.
-LM_ITERATIONS = 100
-LM_RTOL = 1e-5
-LM_RTOL_TOTAL = 1e-6
-LM_ATOL = 1e-12  # ... or when its loss fell below this fraction of where it started
-ADAM_ITERATIONS = 500
-
-
-@dataclass(frozen=True, eq=False)
-class Problem:
-    """Static structure of a retargeting problem (topology-sized NumPy arrays).
-
-    Attributes:
-        parents: ``(J,)`` target parent indices.
-        mapped: ``(M,)`` target joints compared with source positions.
-        weights: ``(M,)`` loss weight per mapped joint.
-        rot_joints: ``(R,)`` joints whose rotation is optimised.
-        trans_joints: ``(T,)`` joints whose local translation is optimised.
-        orders: ``R`` Euler orders (``"ZXY"``...) of ``rot_joints`` (Adam's parameters).
-    """
-
-    parents: np.ndarray
-    mapped: np.ndarray
-    weights: np.ndarray
-    rot_joints: np.ndarray
-    trans_joints: np.ndarray
-    orders: tuple[str, ...]
-
-    def key(self) -> tuple:
-        return (tuple(self.parents.tolist()), tuple(self.mapped.tolist()), tuple(np.round(self.weights, 12).tolist()),
-                tuple(self.rot_joints.tolist()), tuple(self.trans_joints.tolist()), self.orders)
-
-    @property
-    def n_params(self) -> int:
-        return 3 * (len(self.rot_joints) + len(self.trans_joints))
-
-
-def _masks(problem: Problem) -> tuple[np.ndarray, np.ndarray]:
-    """``(rot_mask (M, R), trans_mask (M, T))``: which parameters move which mapped joint."""
-    from usdmotion.ops.hierarchy import ancestor_matrix
-
-    anc = ancestor_matrix(problem.parents)
-    rot = anc[problem.rot_joints][:, problem.mapped].T
-    sub = anc | np.eye(len(problem.parents), dtype=bool)
-    trans = sub[problem.trans_joints][:, problem.mapped].T
-    return rot.astype(np.float32), trans.astype(np.float32)
-
+# JAX (and optax) are imported inside the functions that use them: a deliberately deferred
+# heavy dependency (seconds of start-up), needed only once a solve runs.
 
 def _skew(a):
     """``(..., 3, 3)`` cross-product matrices ``[a]_×`` of ``a (..., 3)``."""
@@ -118,7 +68,7 @@ def make_jacobian(problem: Problem):
     mapped = jnp.asarray(problem.mapped)
     sqrt_w = jnp.asarray(np.sqrt(problem.weights), jnp.float32)
     rot_j = jnp.asarray(problem.rot_joints)
-    rot_mask, trans_mask = (jnp.asarray(m) for m in _masks(problem))
+    rot_mask, trans_mask = (jnp.asarray(m) for m in masks(problem))
     n_rot, n_trans, n_map = len(problem.rot_joints), len(problem.trans_joints), len(problem.mapped)
     eye3 = jnp.eye(3, dtype=jnp.float32)
 
@@ -191,7 +141,6 @@ def single_point_joints(problem: Problem) -> tuple[np.ndarray, np.ndarray, np.nd
     """Rotation joints whose subtree holds exactly one mapped joint: ``(slot in
     rot_joints, joint, that mapped joint)``. Their twist about the line to it is a null
     direction of the loss."""
-    from usdmotion.ops.hierarchy import ancestor_matrix
 
     anc = ancestor_matrix(problem.parents)[:, problem.mapped]  # (J, M): mapped strict descendants
     rows = [(k, int(j), int(problem.mapped[np.flatnonzero(anc[j])[0]]))
@@ -230,7 +179,6 @@ def make_lm_step(problem: Problem, linear: str = "tree"):
     frames. The twist then stays where the (smooth) initial guess put it."""
     import jax.numpy as jnp
 
-    from usdmotion.ops.retarget_tree import make_tree_step
 
     linear_step = make_tree_step(problem) if linear == "tree" else make_dense_step(problem)
     slot, joint, point = (jnp.asarray(a) for a in single_point_joints(problem))
@@ -368,7 +316,6 @@ _EXECUTABLES: dict = {}
 
 def _executable(problem: Problem, method: str, iterations: int, lr: float, args) -> tuple[object, float]:
     """``(compiled function, seconds spent compiling)`` for these argument shapes (cached)."""
-    import time
 
     key = (problem.key(), method, iterations, lr, tuple((a.shape, str(a.dtype)) for a in args))
     if key in _EXECUTABLES:
@@ -442,12 +389,10 @@ def solve(problem: Problem, q0: np.ndarray, t0: np.ndarray, targets: np.ndarray,
         lr: Adam's learning rate.
         progress: optional ``callable(frames_done)``.
     """
-    import time
 
     import jax
     import jax.numpy as jnp
 
-    from usdmotion.rotations import quat_to_euler
 
     if method not in ("lm", "adam"):
         raise ValueError(f"unknown method {method!r}")
@@ -498,8 +443,6 @@ def enable_compilation_cache() -> str | None:
     the user already configured for JAX is left alone. Repeat runs on the same skeletons
     then skip most of the XLA compile time.
     """
-    import os
-    from pathlib import Path
 
     import jax
 

@@ -16,8 +16,8 @@ import numpy as np
 from usdmotion.errors import OutputError
 from usdmotion.io.atomic import atomic_output
 from usdmotion.motion import Motion
-from usdmotion.ops.roles import LIMB_BONES
-from usdmotion.ops.segment import Segmentation, clip
+from usdmotion.ops.segment.roles import LIMB_BONES
+from usdmotion.ops.segment.detect import Segmentation, clip
 
 CLIP_FORMATS = ("bvh", "usda", "usdc")
 

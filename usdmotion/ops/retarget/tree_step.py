@@ -12,7 +12,7 @@ XLA on CPU runs batched products of tiny matrices slowly, so matrices here are l
 rows of entries, each entry a ``(nodes, frames)`` array (frames last) or a Python 0/1
 that costs nothing; XLA then sees only elementwise arithmetic, which it fuses and
 vectorises. Measured on the 31 → 18 joint CMU case: 2–3 µs per frame per step against
-15–17 µs for the batched Cholesky of ``JᵀJ`` (``retarget_solve.make_dense_step``).
+15–17 µs for the batched Cholesky of ``JᵀJ`` (``solve.make_dense_step``).
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from usdmotion.ops.retarget_solve import LM_DIAG_FLOOR, LM_NULL_DAMPING, Problem
+from usdmotion.ops.retarget.problem import LM_DIAG_FLOOR, LM_NULL_DAMPING, Problem
 
 
 @dataclass(frozen=True)

@@ -9,7 +9,7 @@ Conventions (see ``docs/analyze.md``):
   file units; time in seconds; angles in degrees.
 * **Positions** are the raw world positions (forward kinematics of the file); velocities
   and accelerations are time derivatives of the *filtered* positions
-  (:mod:`usdmotion.ops.smoothing`).
+  (:mod:`usdmotion.ops.analyse.smoothing`).
 * **Joint angles** (``euler``): the joint's rotation relative to its parent, zero in the
   file's rest pose (OFFSETs, no rotation), decomposed as intrinsic Euler angles in the
   joint's own BVH channel order (or one ``euler_order`` for all). Angles are continuous
@@ -43,7 +43,7 @@ from usdmotion.anthropometry import BodyModel
 from usdmotion.errors import InputError
 from usdmotion.kinematics import rest_positions, world_rotations_positions
 from usdmotion.motion import Motion
-from usdmotion.ops.smoothing import FilterSpec, smooth_derivatives
+from usdmotion.ops.analyse.smoothing import FilterSpec, smooth_derivatives
 from usdmotion.skeleton_names import children_map, distal_joints, proximal_joint, rest_tolerance
 
 AXES = ("x", "y", "z")
@@ -205,7 +205,7 @@ def euler_angles(motion: Motion, order: str | None = None) -> tuple[np.ndarray, 
     joints. Without file values, angles are unwrapped over time (continuous, may pass
     ±180°). End sites get zeros and order ``""``.
     """
-    from usdmotion.io.bvh import default_channels, rotation_order
+    from usdmotion.channels import default_channels, rotation_order
     from usdmotion.motion import ROTATION_CHANNELS
     from usdmotion.rotations import check_euler_order, closest_equivalent_euler
 

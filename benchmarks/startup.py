@@ -1,0 +1,88 @@
+"""Whole-process start-up: ``usdmotion --version``, ``info`` and ``convert``, against ``python -c pass``.
+
+    .venv/bin/python benchmarks/startup.py [--repeat 5]
+
+Each command runs as a new process (what a user waits for), ``--repeat`` times after one
+warm-up; the table shows medians and each command's time over the bare interpreter's, in
+the same run. Inputs: the bundled CMU walk tiled to 1,730 frames (1.3 MB, for ``info``)
+and to 5,000 frames (31 joints, for ``convert`` to .usdc and .bvh). Goals (issue 11):
+``info`` ≤ 0.30 s and ``convert`` to USDC ≤ 0.40 s whole process. The modules each command
+imported are listed too (``-X importtime`` would slow the run; ``sys.modules`` at exit).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import REPO, print_table, tiled_bvh, write_results  # noqa: E402
+
+PYTHON = sys.executable
+WALK = REPO / "usdmotion" / "data" / "cmu_12_01_walk.bvh"
+HEAVY = ("jax", "pandas", "pyrender", "scipy.signal", "scipy", "pxr", "pyarrow", "matplotlib", "numpy")
+CLI = "import sys; from usdmotion.cli import main; sys.exit(main(sys.argv[1:]))"
+MODULES = ("import atexit, sys\n"
+           "atexit.register(lambda: print('MODULES', [m for m in {heavy!r} if m in sys.modules], file=sys.stderr))\n"
+           "from usdmotion.cli import main; sys.exit(main(sys.argv[1:]))")
+
+
+def whole_process(args: list[str], repeat: int) -> dict:
+    """Median/min of ``repeat`` runs of ``args`` as a new process (after one warm-up)."""
+    times = []
+    for i in range(repeat + 1):
+        start = time.perf_counter()
+        done = subprocess.run(args, capture_output=True, text=True)
+        elapsed = time.perf_counter() - start
+        if done.returncode != 0:
+            raise SystemExit(f"{' '.join(map(str, args))} failed: {done.stderr.strip()}")
+        if i:
+            times.append(elapsed)
+    return {"median_s": statistics.median(times), "min_s": min(times), "runs": repeat}
+
+
+def imported(cli_args: list[str]) -> list[str]:
+    done = subprocess.run([PYTHON, "-c", MODULES.format(heavy=HEAVY), *cli_args], capture_output=True, text=True)
+    line = next(line for line in done.stderr.splitlines() if line.startswith("MODULES"))
+    return json.loads(line.split(" ", 1)[1].replace("'", '"'))
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeat", type=int, default=5)
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        info_file = tiled_bvh(WALK, 1730, tmp / "walk_1730.bvh")
+        convert_file = tiled_bvh(WALK, 5000, tmp / "walk_5000.bvh")
+        cases = {
+            "python -c pass": [PYTHON, "-c", "pass"],
+            "usdmotion --version": ["--version"],
+            f"usdmotion info ({info_file.stat().st_size / 1e6:.1f} MB)": ["info", str(info_file), "--units", "asf"],
+            "usdmotion convert 5000 frames -> .usdc": ["convert", str(convert_file), str(tmp / "out.usdc")],
+            "usdmotion convert 5000 frames -> .bvh": ["convert", str(convert_file), str(tmp / "out.bvh")],
+        }
+        results = {}
+        for name, cli_args in cases.items():
+            command = cli_args if name.startswith("python") else [PYTHON, "-c", CLI, *cli_args]
+            results[name] = whole_process(command, args.repeat)
+            if not name.startswith("python"):
+                results[name]["imports"] = imported(cli_args)
+    base = results["python -c pass"]["median_s"]
+    rows = [[name, f"{r['median_s']:.3f}", f"{r['min_s']:.3f}", f"{r['median_s'] / base:.1f}x",
+             " ".join(r.get("imports", []))] for name, r in results.items()]
+    print_table(f"whole-process time, median of {args.repeat} (interpreter: {PYTHON})",
+                ["command", "median s", "min s", "over python", "heavy modules imported"], rows)
+    path = write_results("startup", {"repeat": args.repeat, "goals_s": {"info": 0.30, "convert_usdc": 0.40},
+                                     "results": results})
+    print(f"wrote {path}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,43 @@
+"""Start-up is the user's time: each command imports only what it uses (whole processes)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+WALK = Path(__file__).resolve().parents[1] / "usdmotion" / "data" / "cmu_12_01_walk.bvh"
+HEAVY = ("jax", "pandas", "pyrender", "scipy.signal", "numpy", "pxr")
+SCRIPT = ("import atexit, json, sys\n"
+          f"atexit.register(lambda: print('MODULES ' + json.dumps([m for m in {HEAVY!r} if m in sys.modules])))\n"
+          "from usdmotion.cli import main\n"
+          "code = main(sys.argv[1:])\n"
+          "sys.stdout.flush(); sys.exit(code)")
+
+
+def imported(*args: str) -> set[str]:
+    done = subprocess.run([sys.executable, "-c", SCRIPT, *args], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    line = next(line for line in done.stdout.splitlines() if line.startswith("MODULES "))
+    return set(json.loads(line.removeprefix("MODULES ")))
+
+
+@pytest.mark.parametrize("args", [["info", str(WALK)], ["convert", str(WALK), "{tmp}/walk.usdc"],
+                                  ["convert", str(WALK), "{tmp}/walk.usda"], ["convert", str(WALK), "{tmp}/walk.bvh"]],
+                         ids=["info", "convert-usdc", "convert-usda", "convert-bvh"])
+def test_info_and_convert_import_no_heavy_optional_dependency(tmp_path, args):
+    found = imported(*(a.format(tmp=tmp_path) for a in args))
+    assert "numpy" in found  # the check sees the process's modules (the command did read the motion)
+    assert found & {"jax", "pandas", "pyrender", "scipy.signal"} == set()
+
+
+def test_version_and_help_import_no_numpy():
+    assert imported("--version") == set()
+    assert imported("info", "--help") == set()
+
+
+def test_the_check_sees_a_heavy_import_where_a_command_needs_one():
+    assert "scipy.signal" in imported("analyze", str(WALK), "--units", "asf", "--frames", "1:")
