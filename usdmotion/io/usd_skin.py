@@ -204,8 +204,6 @@ def add_skinned_meshes(stage, skeleton, motion, source=None) -> list:
     """Author :func:`usable_meshes` of ``motion`` under ``skeleton``'s SkelRoot; returns the meshes."""
     from pxr import Gf, Sdf, UsdGeom, UsdSkel, Vt
 
-    from usdmotion.io.usd import _usd_matrices
-
     meshes = usable_meshes(motion, source)
     if not meshes:
         return []
@@ -246,7 +244,7 @@ def add_skinned_meshes(stage, skeleton, motion, source=None) -> list:
         binding.CreateGeomBindTransformAttr(Gf.Matrix4d(1.0))
         _author_blend_shapes(stage, prim, binding, mesh)
         authored.append(prim)
-    skeleton.GetBindTransformsAttr().Set(_usd_matrices(bind))
+    skeleton.GetBindTransformsAttr().Set(Vt.Matrix4dArray.FromNumpy(np.ascontiguousarray(np.swapaxes(bind, -1, -2))))
     return authored
 
 
