@@ -451,3 +451,15 @@ def test_info_lists_the_skeletons_of_a_stage(tmp_path, capsys):
     stage.GetRootLayer().Save()
     assert main(["info", str(path)]) == 2
     assert "2 skeletons in the stage (/A/Skel, /B/Skel); choose one with --skeleton" in capsys.readouterr().err
+    assert main(["info", str(path), "--skeleton", "/B/Skel", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["skeletons"] == ["/A/Skel", "/B/Skel"]
+
+
+def test_cli_resample_option_reads_uneven_samples(tmp_path, capsys):
+    from usdmotion.cli import main
+
+    path = _uneven(tmp_path / "uneven.usda")
+    assert main(["info", str(path)]) == 2
+    assert "unevenly spaced" in capsys.readouterr().err
+    assert main(["convert", str(path), str(tmp_path / "even.bvh"), "--resample"]) == 0
+    assert read_motion(tmp_path / "even.bvh").n_frames == 8

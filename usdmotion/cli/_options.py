@@ -67,6 +67,10 @@ Skeleton = Annotated[str | None, typer.Option(
     "--skeleton", help="The ASF skeleton file for .amc input, or the Skeleton prim path for a USD stage with "
                        "several skeletons.", show_default=False)]
 
+Resample = Annotated[bool, typer.Option(
+    "--resample", help="Read a USD animation whose time samples are unevenly spaced at even steps (the usual "
+                       "step; USD interpolates) instead of refusing it.")]
+
 
 @dataclass(frozen=True)
 class ReadOptions:
@@ -82,6 +86,7 @@ class ReadOptions:
     lenient: bool = False
     ignore_joint_positions: bool = False
     skeleton: str | None = None
+    resample: bool = False
 
     def read(self, path: Path):
         """The motion in ``path`` (progress shown for slow files)."""
@@ -96,7 +101,7 @@ class ReadOptions:
 #: The parameters :func:`reads_motion` adds to a command: (name, annotation, default).
 READ_PARAMETERS = (("units", Units, None), ("up_axis", UpAxis, None), ("root_offset", RootOffset, RootOffsetChoice.auto),
                    ("lenient", Lenient, False), ("ignore_joint_positions", IgnoreJointPositions, False),
-                   ("skeleton", Skeleton, None))
+                   ("skeleton", Skeleton, None), ("resample", Resample, False))
 
 
 def option_group(parameters: tuple, into: str, group: type) -> Callable[[Callable], Callable]:
@@ -126,6 +131,6 @@ def option_group(parameters: tuple, into: str, group: type) -> Callable[[Callabl
 
 
 #: Gives a command the shared reading options (``--units``, ``--up-axis``, ``--root-offset``,
-#: ``--lenient``, ``--ignore-joint-positions``, ``--skeleton``) as ``read: ReadOptions``; it
+#: ``--lenient``, ``--ignore-joint-positions``, ``--skeleton``, ``--resample``) as ``read: ReadOptions``; it
 #: reads with ``read.read(path)``.
 reads_motion = option_group(READ_PARAMETERS, "read", ReadOptions)

@@ -51,7 +51,7 @@ def frame_times(anim, path: Path, resample: bool = False) -> tuple[np.ndarray, f
         k = int(np.flatnonzero(uneven)[0])
         raise UsdReadError(path, f"{anim.GetPath()}: time samples are unevenly spaced (step {steps[k]:.6g} at time "
                                  f"{times[k]:.6g}, usually {step:.6g}); resample the animation evenly, or read it "
-                                 "with resampling (USD's interpolation at the usual step)")
+                                 "with --resample (USD's interpolation at the usual step)")
     count = int(np.floor((times[-1] - times[0]) / step + 1e-9)) + 1
     return times[0] + step * np.arange(count), step
 
