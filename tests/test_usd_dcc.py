@@ -463,3 +463,19 @@ def test_cli_resample_option_reads_uneven_samples(tmp_path, capsys):
     assert "unevenly spaced" in capsys.readouterr().err
     assert main(["convert", str(path), str(tmp_path / "even.bvh"), "--resample"]) == 0
     assert read_motion(tmp_path / "even.bvh").n_frames == 8
+
+
+def test_trim_resample_and_reorient_commands_keep_the_mesh(tmp_path, capsys):
+    from usdmotion.cli import main
+
+    source = _skinned_stage(tmp_path / "skinned.usda")
+    expected = usd_core_skinned_world(source, range(10))["Body"]
+    height = float(np.ptp(expected.reshape(-1, 3), axis=0).max())
+    assert main(["trim", str(source), str(tmp_path / "trim.usda"), "--frames", "2:7"]) == 0, capsys.readouterr().err
+    got = usd_core_skinned_world(tmp_path / "trim.usda", range(5))["Body"]
+    assert np.abs(got - expected[2:7]).max() <= POSITION_TOL * height
+    assert main(["resample", str(source), str(tmp_path / "slow.usdc"), "--fps", "48"]) == 0, capsys.readouterr().err
+    slow = usd_core_skinned_world(tmp_path / "slow.usdc", range(0, 19, 2))["Body"]  # every other frame = the input's
+    assert np.abs(slow - expected).max() <= 1e-3 * height  # resampling slerps between frames; on-frame it matches
+    assert main(["reorient", str(source), str(tmp_path / "turned.usda"), "--rotate", "90"]) == 0
+    assert Usd.Stage.Open(str(tmp_path / "turned.usda")).GetPrimAtPath("/turned/Body")
