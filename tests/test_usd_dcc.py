@@ -479,3 +479,6 @@ def test_trim_resample_and_reorient_commands_keep_the_mesh(tmp_path, capsys):
     assert np.abs(slow - expected).max() <= 1e-3 * height  # resampling slerps between frames; on-frame it matches
     assert main(["reorient", str(source), str(tmp_path / "turned.usda"), "--rotate", "90"]) == 0
     assert Usd.Stage.Open(str(tmp_path / "turned.usda")).GetPrimAtPath("/turned/Body")
+    capsys.readouterr()
+    assert main(["info", str(tmp_path / "turned.usda")]) == 0
+    assert "mesh        Body: 36 points skinned to the skeleton, blend shapes smile" in capsys.readouterr().out
