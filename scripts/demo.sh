@@ -24,6 +24,8 @@ $U positions "$IN" --frames 100 --joints LeftFoot,RightHand --units asf
 $U positions "$OUT/walk_roundtrip.bvh" --frames 100 --joints LeftFoot,RightHand --units asf
 echo "== 5. a skinned volumetric body bound to the skeleton (opens skinned in Blender, Maya, Houdini, Omniverse)"
 $U convert "$IN" "$OUT/walk_body.usdz" --units asf --mesh
+echo "== 5b. the same body as GLB (glTF 2.0: web viewers, three.js, game engines), resampled to 30 fps"
+$U convert "$IN" "$OUT/walk_body.glb" --units asf --mesh --fps 30
 echo "== 6. retarget onto a 17-joint skeleton (14 joints removed; JAX solves all frames at once)"
 $U retarget "$IN" "$OUT/walk_17joints.usdz" --units asf --report "$OUT/retarget_report.json" \
   --remove LHipJoint,RHipJoint,LowerBack,Neck,LeftShoulder,RightShoulder,LeftFingerBase,RightFingerBase,LeftHandIndex1,RightHandIndex1,LThumb,RThumb,LeftToeBase,RightToeBase

@@ -16,4 +16,12 @@ if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
   .venv/bin/python -m pip install -q -e ".[test]"
   touch "$stamp"
 fi
+if command -v npm >/dev/null 2>&1; then
+  if [ ! -d tests/gltf_validator/node_modules/gltf-validator ] \
+     || [ tests/gltf_validator/package-lock.json -nt tests/gltf_validator/node_modules/.package-lock.json ]; then
+    (cd tests/gltf_validator && npm ci --no-audit --no-fund --loglevel=error >/dev/null)
+  fi
+else
+  echo "setup: npm not found: skipping the Khronos glTF-Validator (tests/gltf_validator); its tests will skip"
+fi
 echo "setup: ready ($(.venv/bin/python --version), usdmotion $(.venv/bin/python -c 'import importlib.metadata as m; print(m.version("usdmotion"))'))"

@@ -104,4 +104,4 @@ def test_convert_mesh_writes_a_valid_skinned_stage(shared_file, tmp_path, capsys
     weights = np.array(UsdSkel.BindingAPI(body).GetJointWeightsPrimvar().Get()).reshape(-1, 4)
     np.testing.assert_allclose(weights.sum(axis=1), 1.0, atol=1e-6)
     assert main(["convert", str(shared_file(WALK)), str(tmp_path / "walk.bvh"), "--units", "asf", "--mesh"]) == 2
-    assert "--mesh needs a USD output" in capsys.readouterr().err
+    assert "--mesh needs a USD or glTF output" in capsys.readouterr().err

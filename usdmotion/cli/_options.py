@@ -26,15 +26,15 @@ class UpAxisChoice(str, Enum):
     auto = "auto"
 
 
-InputPath = Annotated[Path, typer.Argument(help="Input motion: .bvh, .usd, .usda, .usdc or .usdz.",
+InputPath = Annotated[Path, typer.Argument(help="Input motion: .bvh, .usd, .usda, .usdc, .usdz, .glb or .gltf.",
                                            show_default=False)]
 Units = Annotated[str | None, typer.Option(
     "--units", help="Length unit of a BVH file: cm, m, mm, in, ft, asf (CMU, 1/0.45 in), or metres per "
                     "unit as a number, or auto (guessed from the body, reason given; see docs/units_guess.md). "
-                    "Default: cm for BVH; the stage's for USD.", show_default=False)]
+                    "Default: cm for BVH; the file's for USD and glTF.", show_default=False)]
 UpAxis = Annotated[UpAxisChoice | None, typer.Option(
     "--up-axis", help="Vertical axis of a BVH file (default Y), or auto (guessed from the body); overrides a "
-                      "USD stage's.", show_default=False,
+                      "USD or glTF file's.", show_default=False,
     case_sensitive=False)]
 RootOffset = Annotated[RootOffsetChoice, typer.Option(
     "--root-offset", help="BVH root OFFSET: 'add' to the root position channels (BVH spec), 'replace' by "
@@ -64,8 +64,9 @@ def parse_start_stop(text: str | None) -> tuple[int | None, int | None]:
 
 
 Skeleton = Annotated[str | None, typer.Option(
-    "--skeleton", help="The ASF skeleton file for .amc input, or the Skeleton prim path for a USD stage with "
-                       "several skeletons.", show_default=False)]
+    "--skeleton", help="The ASF skeleton file for .amc input, the Skeleton prim path for a USD stage with "
+                       "several skeletons, or the skin (index or name) of a glTF file with several.",
+    show_default=False)]
 
 Resample = Annotated[bool, typer.Option(
     "--resample", help="Read a USD animation whose time samples are unevenly spaced at even steps (the usual "

@@ -1,4 +1,4 @@
-"""``usdmotion convert IN OUT``: BVH ⇄ UsdSkel (.usda/.usdc/.usdz), BVH → BVH, USD → USD."""
+"""``usdmotion convert IN OUT``: between BVH, UsdSkel (.usda/.usdc/.usdz) and glTF 2.0 (.glb/.gltf)."""
 
 from __future__ import annotations
 
@@ -16,16 +16,19 @@ from usdmotion.cli.app import app
 @reads_motion
 def convert(
     source: InputPath,
-    output: Annotated[Path, typer.Argument(help="Output: .usda, .usdc, .usdz, .usd or .bvh.", show_default=False)],
+    output: Annotated[Path, typer.Argument(help="Output: .usda, .usdc, .usdz, .usd, .bvh, .glb or .gltf.",
+                                           show_default=False)],
     validate: Annotated[bool, typer.Option(help="Run pxr.UsdValidation on a USD output.")] = True,
-    mesh: Annotated[bool, typer.Option("--mesh", help="Add a volumetric body Mesh skinned to the Skeleton "
-                                                      "(USD output only).")] = False,
+    mesh: Annotated[bool, typer.Option("--mesh", help="Add a volumetric body mesh skinned to the skeleton "
+                                                      "(USD and glTF outputs).")] = False,
+    fps: Annotated[float | None, typer.Option("--fps", help="Resample to this frame rate first (e.g. 30 for a "
+                                                            "smaller file).", show_default=False)] = None,
     to_up_axis: Annotated[UpAxisChoice | None, typer.Option(
         "--to-up-axis", help="Turn the output to this up axis (Y for AR Quick Look); default: keep the input's.",
         case_sensitive=False, show_default=False)] = None,
     read: ReadOptions = ReadOptions(),
 ) -> None:
-    """Convert a motion between BVH and OpenUSD (UsdSkel)."""
+    """Convert a motion between BVH, OpenUSD (UsdSkel) and glTF 2.0 (GLB)."""
     from usdmotion.cli._progress import progress
     from usdmotion.errors import OutputError
     from usdmotion.io import write_motion
@@ -34,19 +37,28 @@ def convert(
         raise OutputError(f"{output}: output would overwrite the input")
     start = time.perf_counter()
     motion = read.read(source)
+    if fps is not None:
+        from usdmotion.ops.edit.timewarp import resample
+
+        motion = resample(motion, fps)
     if to_up_axis is not None and to_up_axis.value != "auto":
         from usdmotion.ops.up_axis import convert_up_axis
 
         motion = convert_up_axis(motion, to_up_axis.value)
     options = {}
     if mesh:
-        from usdmotion.io.usd_mesh import body_decorator
         from usdmotion.skin import build_body
 
-        if output.suffix.lower() not in (".usd", ".usda", ".usdc", ".usdz"):
-            raise OutputError(f"{output}: --mesh needs a USD output (.usd, .usda, .usdc, .usdz)")
+        if output.suffix.lower() not in (".usd", ".usda", ".usdc", ".usdz", ".glb", ".gltf"):
+            raise OutputError(f"{output}: --mesh needs a USD or glTF output (.usd, .usda, .usdc, .usdz, .glb, .gltf)")
         with progress("building the body mesh"):
-            options["decorate"] = body_decorator(build_body(motion))
+            body = build_body(motion)
+        if output.suffix.lower() in (".glb", ".gltf"):
+            options["body"] = body
+        else:
+            from usdmotion.io.usd_mesh import body_decorator
+
+            options["decorate"] = body_decorator(body)
     with progress(f"writing {output.name}"):
         write_motion(motion, output, **options)
     problems = []

@@ -15,6 +15,8 @@ from usdmotion.motion import Motion
 
 BVH_EXTENSIONS = (".bvh",)
 USD_EXTENSIONS = (".usd", ".usda", ".usdc", ".usdz")
+GLTF_EXTENSIONS = (".glb", ".gltf")
+KNOWN = f".bvh, {', '.join(USD_EXTENSIONS)}, {', '.join(GLTF_EXTENSIONS)}"
 
 
 def _kind(path: Path) -> str | None:
@@ -23,6 +25,8 @@ def _kind(path: Path) -> str | None:
         return "bvh"
     if ext in USD_EXTENSIONS:
         return "usd"
+    if ext in GLTF_EXTENSIONS:
+        return "gltf"
     return None
 
 
@@ -33,16 +37,18 @@ def _is_auto(value) -> bool:
 def read_motion(path: str | os.PathLike, root_offset: str = "auto", units: str | float | None = None,
                 up_axis: str | None = None, lenient: bool = False, ignore_joint_positions: bool = False,
                 skeleton: str | None = None, resample: bool = False) -> Motion:
-    """Read a BVH or UsdSkel file.
+    """Read a BVH, UsdSkel or glTF 2.0 (.glb/.gltf) file.
 
     For BVH, ``units`` (default ``"cm"``) and ``up_axis`` (default ``"Y"``) state what the
     file does not; ``"auto"`` guesses them from the body (:mod:`usdmotion.units_guess`,
-    with a warning giving the reason). For USD they come from the stage and, if given
-    (not ``"auto"``), override it. ``skeleton`` names the ASF skeleton file of ``.amc``
-    input or the Skeleton prim path of a USD stage with several skeletons; inputs that
-    cannot take it raise ``InputError``. ``resample`` reads a USD animation's unevenly
-    spaced time samples at even steps. Either way a human skeleton whose height in the
-    chosen units is outside 0.5–3 m warns.
+    with a warning giving the reason). For USD and glTF they come from the file (glTF:
+    metres, Y up, or the source's where usdmotion wrote it) and, if given (not
+    ``"auto"``), override it. ``skeleton`` names the ASF skeleton file of ``.amc`` input,
+    the Skeleton prim path of a USD stage with several skeletons, or the skin (index or
+    name) of a glTF file with several; inputs that cannot take it raise ``InputError``.
+    ``resample`` reads a USD animation's unevenly spaced time samples at even steps.
+    Whatever the format, a human skeleton whose height in the chosen units is outside
+    0.5–3 m warns.
     """
     from usdmotion.units_guess import apply_body_guess
 
@@ -64,27 +70,41 @@ def read_motion(path: str | os.PathLike, root_offset: str = "auto", units: str |
         motion = read_usd(path, skeleton=skeleton, resample=resample)
         motion = override_units_axis(motion, None if _is_auto(units) else units, None if _is_auto(up_axis) else up_axis)
         return apply_body_guess(motion, path, False, False)
-    raise InputError(path, f"unknown input format {path.suffix!r} (use .bvh, {', '.join(USD_EXTENSIONS)})")
+    if kind == "gltf":
+        from usdmotion.io.gltf_read import read_gltf
+
+        motion = override_units_axis(read_gltf(path, skin=skeleton), None if _is_auto(units) else units,
+                                     None if _is_auto(up_axis) else up_axis)
+        return apply_body_guess(motion, path, False, False)
+    raise InputError(path, f"unknown input format {path.suffix!r} (use {KNOWN})")
+
+
+def _say_meshes_dropped(motion: Motion, path: Path, why: str) -> None:
+    if motion.meshes:
+        import warnings
+
+        from usdmotion.errors import UsdMotionWarning
+
+        warnings.warn(f"{path}: the skinned meshes ({', '.join(m.name for m in motion.meshes)}) are not written: "
+                      f"{why} (write .usd/.usda/.usdc/.usdz to keep them)", UsdMotionWarning, stacklevel=3)
 
 
 def write_motion(motion: Motion, path: str | os.PathLike, **options) -> Path:
-    """Write ``motion`` as BVH or USD, chosen by the extension of ``path`` (atomically)."""
+    """Write ``motion`` as BVH, USD or glTF, chosen by the extension of ``path`` (atomically)."""
     path = Path(path)
     kind = _kind(path)
     if kind == "bvh":
         from usdmotion.io.bvh_write import write_bvh
 
-        if motion.meshes:
-            import warnings
-
-            from usdmotion.errors import UsdMotionWarning
-
-            warnings.warn(f"{path}: the skinned meshes ({', '.join(m.name for m in motion.meshes)}) are not written: "
-                          "BVH holds no geometry (write .usd/.usda/.usdc/.usdz to keep them)", UsdMotionWarning,
-                          stacklevel=2)
+        _say_meshes_dropped(motion, path, "BVH holds no geometry")
         return write_bvh(motion, path, **{k: v for k, v in options.items() if k in ("decimals",)})
     if kind == "usd":
         from usdmotion.io.usd import write_usd
 
         return write_usd(motion, path, **{k: v for k, v in options.items() if k in ("name", "decorate")})
-    raise OutputError(f"{path}: unknown output format {path.suffix!r} (use .bvh, {', '.join(USD_EXTENSIONS)})")
+    if kind == "gltf":
+        from usdmotion.io.gltf import write_gltf
+
+        _say_meshes_dropped(motion, path, "the glTF writer does not carry an input's skinned meshes yet")
+        return write_gltf(motion, path, **{k: v for k, v in options.items() if k in ("name", "mesh", "fps", "body")})
+    raise OutputError(f"{path}: unknown output format {path.suffix!r} (use {KNOWN})")
