@@ -482,3 +482,13 @@ def test_trim_resample_and_reorient_commands_keep_the_mesh(tmp_path, capsys):
     capsys.readouterr()
     assert main(["info", str(tmp_path / "turned.usda")]) == 0
     assert "mesh        Body: 36 points skinned to the skeleton, blend shapes smile" in capsys.readouterr().out
+
+
+def test_a_broken_skinned_mesh_is_not_read_and_said_so(tmp_path):
+    path = _skinned_stage(tmp_path / "skinned.usda")
+    stage = Usd.Stage.Open(str(path))
+    UsdSkel.BindingAPI(stage.GetPrimAtPath("/Char/Body")).GetJointIndicesPrimvar().Set(Vt.IntArray([7] * 72))
+    stage.GetRootLayer().Save()
+    with pytest.warns(UserWarning, match="/Char/Body: skinned mesh not read: joint indices outside the joint list"):
+        motion = read_usd(path)
+    assert motion.meshes == ()

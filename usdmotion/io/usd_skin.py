@@ -117,6 +117,11 @@ def _one_mesh(query, skel_tokens, bind_rows, names_by_token, offsets_by_name, an
     index_in_skel = {t: i for i, t in enumerate(skel_tokens)}
     if any(t not in index_in_skel or t not in names_by_token for t in tokens):
         return None
+    counts, face_indices = mesh.GetFaceVertexCountsAttr().Get(), mesh.GetFaceVertexIndicesAttr().Get()
+    problem = _mesh_problem(points, counts, face_indices, indices, weights, len(tokens))
+    if problem:
+        warnings.warn(f"{prim.GetPath()}: skinned mesh not read: {problem}", UsdMotionWarning, stacklevel=4)
+        return None
     geom_bind = _row(query.GetGeomBindTransform())
     to_motion = geom_bind @ ancestor_row
     homog = np.concatenate([points, np.ones((len(points), 1))], axis=1) @ to_motion
@@ -124,12 +129,28 @@ def _one_mesh(query, skel_tokens, bind_rows, names_by_token, offsets_by_name, an
     binds = unscale @ bind_rows[[index_in_skel[t] for t in tokens]] @ ancestor_row  # row-vector D⁻¹ · bind · M
     names = tuple(names_by_token[t] for t in tokens)
     return SkinnedMesh(
-        name=prim.GetName(), points=homog[:, :3], face_vertex_counts=np.array(mesh.GetFaceVertexCountsAttr().Get()),
-        face_vertex_indices=np.array(mesh.GetFaceVertexIndicesAttr().Get()), joint_names=names,
+        name=prim.GetName(), points=homog[:, :3], face_vertex_counts=np.array(counts, np.int64),
+        face_vertex_indices=np.array(face_indices, np.int64), joint_names=names,
         joint_indices=indices, joint_weights=weights, bind_transforms=np.swapaxes(binds, -1, -2),
         rest_offsets=np.array([offsets_by_name[n] for n in names]).reshape(-1, 3),
         **_normals(mesh, to_motion), **_uvs(mesh), display_color=_colour(mesh),
         blend_shapes=_blend_shapes(query, to_motion), animated_blend_shapes=animated)
+
+
+def _mesh_problem(points, counts, face_indices, indices, weights, n_joints: int) -> str | None:
+    """Why a mesh's arrays cannot be carried (``None`` if they can)."""
+    if counts is None or face_indices is None:
+        return "no faceVertexCounts/faceVertexIndices"
+    counts, face_indices = np.array(counts, np.int64), np.array(face_indices, np.int64)
+    if counts.sum() != face_indices.size or np.any(counts < 0):
+        return f"faceVertexCounts sum to {counts.sum()}, faceVertexIndices has {face_indices.size}"
+    if face_indices.size and (face_indices.min() < 0 or face_indices.max() >= len(points)):
+        return "faceVertexIndices outside the points"
+    if not np.all(np.isfinite(points)) or not np.all(np.isfinite(weights)):
+        return "non-finite points or joint weights"
+    if indices.size and (indices.min() < 0 or indices.max() >= n_joints):
+        return "joint indices outside the joint list"
+    return None
 
 
 def _normals(mesh, to_motion) -> dict:
