@@ -66,12 +66,10 @@ def run_long(motion, count: int, tmp: Path) -> dict:
     long = motion.with_frames(np.resize(motion.rotations[1:], (count,) + motion.rotations.shape[1:]),
                               np.resize(motion.root_translation[1:], (count, 3)), fps=60.0)
     samples = []
-    done = [0]
 
-    def progress(advance):
-        done[0] += advance
-        if done[0] % 500 == 0:
-            samples.append((done[0], round(rss_mib(), 1)))
+    def progress(current, total, message):  # a usdmotion.progress.Progress
+        if current % 500 == 0:
+            samples.append((current, round(rss_mib(), 1)))
 
     started = time.perf_counter()
     render_motion(long, tmp / "long.mp4", RenderOptions(width=320, height=240, fps=60.0, camera="follow"),

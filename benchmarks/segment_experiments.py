@@ -5,8 +5,8 @@ Usage: ``python benchmarks/segment_experiments.py [--data ../shared/data]``
 Prints one table and writes ``benchmarks/results/segment_experiments.json``. These are the
 variants of kernel change-point detection that were tried to recover its one miss (the 86_01
 walk → leg-kick cut); one of them, ``kcpd+descent`` (each cut moved downhill on the bone energy
-to the nearest local minimum, ``usdmotion.ops.segment.refine_to_rest``), is what ``usdmotion``
-ships; ``kcpd`` is the detector alone (``segment(..., refine=False)``). All scored with one
+to the nearest local minimum, ``usdmotion.ops.segment.detect.refine_to_rest``), was what ``usdmotion``
+shipped; ``kcpd`` is the detector alone (``segment(..., refine=False)``). All scored with one
 protocol:
 
 * **default**: the variant with settings fixed *before* looking at its scores (the middle of its
@@ -64,6 +64,8 @@ _spec.loader.exec_module(bench)
 
 TOL_S = 0.5
 PENALTIES = (4.0, 6.0, 8.0)
+#: The speed weight these experiments were run with (the shipped default of issue 6; issue 18's is 0.5).
+SPEED_WEIGHT = 0.25
 ZERO = Score(0, 0, 0, 0, ())
 
 
@@ -119,7 +121,7 @@ def pooled(x: np.ndarray, fps: float, rate: float) -> tuple[np.ndarray, int]:
 
 def kcpd(t: Take, penalty: float = 6.0, extra: np.ndarray | None = None) -> np.ndarray:
     """The shipped detector (angles + 0.25 s × speeds at 10 Hz, min length 1 s), optionally with extra columns."""
-    cols = [t.angles, S.DEFAULT_SPEED_WEIGHT * t.speed] + ([] if extra is None else [extra])
+    cols = [t.angles, SPEED_WEIGHT * t.speed] + ([] if extra is None else [extra])
     x, pool = pooled(np.concatenate(cols, axis=1), t.fps, S.KCPD_RATE_HZ)
     min_size = max(2, math.ceil(S.DEFAULT_MIN_LENGTH_S * t.fps / pool))
     return S.kernel_change_points(x, penalty, min_size) * pool
@@ -128,8 +130,8 @@ def kcpd(t: Take, penalty: float = 6.0, extra: np.ndarray | None = None) -> np.n
 def refine(t: Take, cuts: np.ndarray, context_s: float, window_s: float = 1.0, rate: float = 30.0) -> np.ndarray:
     """Move each cut to the split that minimises the two-segment kernel cost at ``rate`` within
     ±``window_s``, the segments clipped to ``context_s`` beyond the window and to the neighbouring cuts."""
-    x, pool = pooled(np.concatenate([t.angles, S.DEFAULT_SPEED_WEIGHT * t.speed], axis=1), t.fps, rate)
-    gamma = S.median_gamma(pooled(np.concatenate([t.angles, S.DEFAULT_SPEED_WEIGHT * t.speed], axis=1),
+    x, pool = pooled(np.concatenate([t.angles, SPEED_WEIGHT * t.speed], axis=1), t.fps, rate)
+    gamma = S.median_gamma(pooled(np.concatenate([t.angles, SPEED_WEIGHT * t.speed], axis=1),
                                   t.fps, S.KCPD_RATE_HZ)[0])
     n = x.shape[0]
     b = np.concatenate([[0], np.asarray(cuts) // pool, [n]])
@@ -438,7 +440,7 @@ def main() -> int:
     parser.add_argument("--data", type=Path, default=Path(os.environ.get("USDMOTION_SHARED_DATA",
                                                                           REPO.parent / "shared" / "data")))
     args = parser.parse_args()
-    motions = {n: read_motion(args.data / bvh) for n, (bvh, _) in bench.TAKES.items()}
+    motions = {n: bench.read_take(args.data, n) for n in bench.TAKES}
     labels = {n: load_labels(args.data / lab) for n, (_, lab) in bench.TAKES.items()}
     labelled = [make_take(n, motions[n], labels[n], "labelled") for n in bench.TAKES]
     clips = {c: read_motion(args.data / f"bandai1/dataset-1_{c}_001.bvh")

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import statistics
 import subprocess
 import sys
@@ -26,19 +27,21 @@ from _common import REPO, print_table, tiled_bvh, write_results  # noqa: E402
 
 PYTHON = sys.executable
 WALK = REPO / "usdmotion" / "data" / "cmu_12_01_walk.bvh"
-HEAVY = ("jax", "pandas", "pyrender", "scipy.signal", "scipy", "pxr", "pyarrow", "matplotlib", "numpy")
-CLI = "import sys; from usdmotion.cli import main; sys.exit(main(sys.argv[1:]))"
-MODULES = ("import atexit, sys\n"
+HEAVY = ("jax", "pandas", "pyrender", "scipy.signal", "scipy", "pxr", "pyarrow", "matplotlib", "numpy", "pydantic", "rich")
+#: Every row imports usdmotion from PYTHONPATH (this checkout's or a --tree's), not through the editable install's finder.
+NO_EDITABLE = "sys.meta_path[:] = [f for f in sys.meta_path if 'editable' not in getattr(f, '__module__', '')]"
+CLI = f"import sys; {NO_EDITABLE}; from usdmotion.cli import main; sys.exit(main(sys.argv[1:]))"
+MODULES = ("import atexit, sys\n" + NO_EDITABLE + "\n"
            "atexit.register(lambda: print('MODULES', [m for m in {heavy!r} if m in sys.modules], file=sys.stderr))\n"
            "from usdmotion.cli import main; sys.exit(main(sys.argv[1:]))")
 
 
-def whole_process(args: list[str], repeat: int) -> dict:
+def whole_process(args: list[str], repeat: int, env: dict | None = None) -> dict:
     """Median/min of ``repeat`` runs of ``args`` as a new process (after one warm-up)."""
     times = []
     for i in range(repeat + 1):
         start = time.perf_counter()
-        done = subprocess.run(args, capture_output=True, text=True)
+        done = subprocess.run(args, capture_output=True, text=True, env=env, cwd=tempfile.gettempdir())
         elapsed = time.perf_counter() - start
         if done.returncode != 0:
             raise SystemExit(f"{' '.join(map(str, args))} failed: {done.stderr.strip()}")
@@ -47,8 +50,9 @@ def whole_process(args: list[str], repeat: int) -> dict:
     return {"median_s": statistics.median(times), "min_s": min(times), "runs": repeat}
 
 
-def imported(cli_args: list[str]) -> list[str]:
-    done = subprocess.run([PYTHON, "-c", MODULES.format(heavy=HEAVY), *cli_args], capture_output=True, text=True)
+def imported(cli_args: list[str], env: dict | None = None) -> list[str]:
+    done = subprocess.run([PYTHON, "-c", MODULES.format(heavy=HEAVY), *cli_args], capture_output=True, text=True,
+                          env=env, cwd=tempfile.gettempdir())
     line = next(line for line in done.stderr.splitlines() if line.startswith("MODULES"))
     return json.loads(line.split(" ", 1)[1].replace("'", '"'))
 
@@ -56,7 +60,13 @@ def imported(cli_args: list[str]) -> list[str]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=5)
+    parser.add_argument("--tree", action="append", default=[], metavar="LABEL=PATH",
+                        help="also run the commands with PYTHONPATH=PATH (another checkout), labelled LABEL")
     args = parser.parse_args()
+    trees = {"": {**os.environ, "PYTHONPATH": str(REPO)}}
+    for tree in args.tree:
+        label, path = tree.split("=", 1)
+        trees[f"{label}: "] = {**os.environ, "PYTHONPATH": path}
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         info_file = tiled_bvh(WALK, 1730, tmp / "walk_1730.bvh")
@@ -70,16 +80,25 @@ def main() -> None:
         }
         results = {}
         for name, cli_args in cases.items():
-            command = cli_args if name.startswith("python") else [PYTHON, "-c", CLI, *cli_args]
-            results[name] = whole_process(command, args.repeat)
-            if not name.startswith("python"):
-                results[name]["imports"] = imported(cli_args)
+            for label, env in trees.items():
+                if name.startswith("python"):
+                    if not label:
+                        results[name] = whole_process(cli_args, args.repeat)
+                    continue
+                try:
+                    results[label + name] = whole_process([PYTHON, "-c", CLI, *cli_args], args.repeat, env)
+                except SystemExit as failed:  # e.g. --version, which an older checkout lacks
+                    if not label:
+                        raise
+                    print(f"{label}{name}: {failed}", file=sys.stderr)
+                    continue
+                results[label + name]["imports"] = imported(cli_args, env)
     base = results["python -c pass"]["median_s"]
     rows = [[name, f"{r['median_s']:.3f}", f"{r['min_s']:.3f}", f"{r['median_s'] / base:.1f}x",
              " ".join(r.get("imports", []))] for name, r in results.items()]
     print_table(f"whole-process time, median of {args.repeat} (interpreter: {PYTHON})",
                 ["command", "median s", "min s", "over python", "heavy modules imported"], rows)
-    path = write_results("startup", {"repeat": args.repeat, "goals_s": {"info": 0.30, "convert_usdc": 0.40},
+    path = write_results("startup", {"repeat": args.repeat, "trees": args.tree, "goals_s": {"info": 0.30, "convert_usdc": 0.40},
                                      "results": results})
     print(f"wrote {path}")
 

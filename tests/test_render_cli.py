@@ -77,8 +77,8 @@ def test_failure_mid_render_leaves_no_partial_output(shared_file, tmp_path):
     motion = read_motion(shared_file(WALK), units="asf")
     calls = []
 
-    def stop_after_three(advance):
-        calls.append(advance)
+    def stop_after_three(current, total, message):  # a usdmotion.progress.Progress
+        calls.append((current, total, message))
         if len(calls) == 3:
             raise KeyboardInterrupt
 

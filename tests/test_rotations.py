@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation, Slerp
 
+from usdmotion import quat_planes as Q
 from usdmotion import rotations as R
 
 ORDERS = R.EULER_ORDERS
@@ -134,3 +135,18 @@ def test_numpy_and_jax_agree():
 def test_bad_order_is_a_value_error():
     with pytest.raises(ValueError, match="Euler order"):
         R.euler_to_quat(np.zeros(3), "XXY")
+
+
+def test_one_hamilton_product_for_every_layout():
+    """wxyz-last (quat_mul), component tuples (hamilton: forward kinematics) and component
+    planes (quat_planes.mul: the editing kernels) give the same bits, and SciPy's rotation."""
+    rng = np.random.default_rng(11)
+    a, b = rng.normal(size=(2, 300, 4))
+    a /= np.linalg.norm(a, axis=-1, keepdims=True)
+    b /= np.linalg.norm(b, axis=-1, keepdims=True)
+    product = R.quat_mul(a, b)
+    scipy = (Rotation.from_quat(a[:, [1, 2, 3, 0]]) * Rotation.from_quat(b[:, [1, 2, 3, 0]])).as_quat()
+    assert same_rotation(product, scipy[:, [3, 0, 1, 2]])
+    assert np.array_equal(np.stack(R.hamilton(a.T, b.T), axis=-1), product)
+    assert np.array_equal(Q.from_c(Q.mul(Q.to_c(a), Q.to_c(b))), product)
+    assert np.array_equal(Q.from_c(Q.mul(Q.to_c(a), Q.to_c(b[:1]))), R.quat_mul(a, b[:1]))  # broadcasting

@@ -10,9 +10,11 @@ from pathlib import Path
 import pytest
 
 WALK = Path(__file__).resolve().parents[1] / "usdmotion" / "data" / "cmu_12_01_walk.bvh"
-HEAVY = ("jax", "pandas", "pyrender", "scipy.signal", "numpy", "pxr")
+HEAVY = ("jax", "pandas", "pyrender", "scipy.signal", "numpy", "pxr", "pydantic", "rich")
 SCRIPT = ("import atexit, json, sys\n"
-          f"atexit.register(lambda: print('MODULES ' + json.dumps([m for m in {HEAVY!r} if m in sys.modules])))\n"
+          f"atexit.register(lambda: print('MODULES ' + json.dumps([m for m in {HEAVY!r} if m in sys.modules]"
+          " + sorted(m for m in sys.modules if m.startswith('usdmotion.cli.') and '._' not in m"
+          " and m != 'usdmotion.cli.app'))))\n"
           "from usdmotion.cli import main\n"
           "code = main(sys.argv[1:])\n"
           "sys.stdout.flush(); sys.exit(code)")
@@ -31,12 +33,21 @@ def imported(*args: str) -> set[str]:
 def test_info_and_convert_import_no_heavy_optional_dependency(tmp_path, args):
     found = imported(*(a.format(tmp=tmp_path) for a in args))
     assert "numpy" in found  # the check sees the process's modules (the command did read the motion)
-    assert found & {"jax", "pandas", "pyrender", "scipy.signal"} == set()
+    assert found & {"jax", "pandas", "pyrender", "scipy.signal", "pydantic"} == set()
+    assert {m for m in found if m.startswith("usdmotion.cli.")} == {f"usdmotion.cli.{args[0]}"}  # its own only
+    if args[0] == "convert":
+        assert "rich" not in found  # the progress bar imports rich only when it is drawn
 
 
 def test_version_and_help_import_no_numpy():
     assert imported("--version") == set()
-    assert imported("info", "--help") == set()
+    assert imported("info", "--help") == {"rich", "usdmotion.cli.info"}  # help is formatted by rich
+
+
+def test_help_lists_every_command():
+    found = imported("--help")
+    commands = {p.stem for p in (WALK.parents[1] / "cli").glob("*.py") if not p.stem.startswith("_")} - {"app"}
+    assert {m for m in found if m.startswith("usdmotion.cli.")} == {f"usdmotion.cli.{c}" for c in commands}
 
 
 def test_the_check_sees_a_heavy_import_where_a_command_needs_one():

@@ -15,7 +15,7 @@ from functools import lru_cache
 import numpy as np
 
 from usdmotion.motion import Motion, joint_depths
-from usdmotion.rotations import array_namespace, quat_to_matrix
+from usdmotion.rotations import array_namespace, hamilton, quat_to_matrix
 
 
 @lru_cache(maxsize=256)
@@ -39,22 +39,6 @@ def _levels_cached(parents_key: tuple[int, ...]) -> tuple[tuple[np.ndarray, np.n
 def depth_levels(parents: np.ndarray) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
     """Joints grouped by depth: ``((idx, parent_position_in_previous_level), ...)``."""
     return _levels_cached(tuple(int(p) for p in np.asarray(parents)))
-
-
-def _qmul_planes(a, b):
-    """Hamilton product of component-first quaternions (tuples of 4 arrays).
-
-    Not :func:`usdmotion.quat_planes.mul`: that one writes into a preallocated NumPy array
-    (``out=``, in-place ``-=``), which ``jax.numpy`` arrays do not allow, and ``fk_arrays``
-    must trace under ``jax.jit`` for retargeting. Same formula and operation order as
-    ``quat_planes.mul`` and :func:`usdmotion.rotations.quat_mul` (the wxyz-last layout).
-    """
-    aw, ax, ay, az = a
-    bw, bx, by, bz = b
-    return (aw * bw - ax * bx - ay * by - az * bz,
-            aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw)
 
 
 def _qrot_planes(q, v):
@@ -95,7 +79,7 @@ def fk_arrays(local_rotations, local_translations, parents: np.ndarray):
     for idx, parent_pos in levels[1:]:
         q_parent = tuple(c[..., parent_pos] for c in q_prev)
         p_parent = tuple(c[..., parent_pos] for c in p_prev)
-        q_prev = _qmul_planes(q_parent, tuple(c[..., idx] for c in q_local))
+        q_prev = hamilton(q_parent, tuple(c[..., idx] for c in q_local))
         offset = _qrot_planes(q_parent, tuple(c[..., idx] for c in t_local))
         p_prev = tuple(a + b for a, b in zip(p_parent, offset))
         q_parts.append(q_prev)

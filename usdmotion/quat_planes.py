@@ -40,7 +40,14 @@ def from_c(qc: np.ndarray) -> np.ndarray:
 
 
 def mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton product ``a * b`` of component-first quaternions (broadcasting)."""
+    """Hamilton product ``a * b`` of component-first quaternions (broadcasting).
+
+    :func:`usdmotion.rotations.hamilton`'s operations in the same order (so the same bits),
+    written into one preallocated array with ``out=`` and in-place updates: calling it and
+    stacking would allocate the twelve products and copy the result once more, on the
+    editing operations' hot paths. (``hamilton`` cannot write in place: JAX arrays, traced
+    by forward kinematics, allow no ``out=``.)
+    """
     aw, ax, ay, az = a
     bw, bx, by, bz = b
     out = np.empty((4,) + np.broadcast_shapes(aw.shape, bw.shape))

@@ -46,20 +46,25 @@ def check_euler_order(order: str) -> str:
     return order.upper()
 
 
+def hamilton(a, b) -> tuple:
+    """Hamilton product ``a * b`` of quaternions given as their four components ``(w, x, y, z)``
+    (each an array, broadcasting; NumPy or JAX). The one product formula of the package:
+    :func:`quat_mul` (wxyz-last arrays) and forward kinematics (component planes, traced
+    under ``jax.jit``) call it; :func:`usdmotion.quat_planes.mul` writes the same operations,
+    in the same order, into one preallocated NumPy array.
+    """
+    aw, ax, ay, az = a
+    bw, bx, by, bz = b
+    return (aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw)
+
+
 def quat_mul(a, b):
     """Hamilton product ``a * b`` of wxyz quaternions ``(..., 4)`` (broadcasting)."""
     xp = array_namespace(a, b)
-    aw, ax, ay, az = a[..., 0], a[..., 1], a[..., 2], a[..., 3]
-    bw, bx, by, bz = b[..., 0], b[..., 1], b[..., 2], b[..., 3]
-    return xp.stack(
-        [
-            aw * bw - ax * bx - ay * by - az * bz,
-            aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw,
-        ],
-        axis=-1,
-    )
+    return xp.stack(hamilton([a[..., k] for k in range(4)], [b[..., k] for k in range(4)]), axis=-1)
 
 
 def quat_conjugate(q):

@@ -4,6 +4,12 @@ Each public module of this package defines one command on :data:`app`; they are
 imported here (sorted by name), so adding a command means adding a module. ``main``
 turns every input error into one line on stderr and exit code 2 (no traceback); set
 ``USDMOTION_DEBUG=1`` to see tracebacks.
+
+Only the invoked command's module is imported (all of them for ``--help``). Command modules
+import the library (``usdmotion.io``, ``ops``, ``render``: NumPy, pyarrow, pxr, JAX, ...)
+inside the command function, deliberately: ``usdmotion --help`` imports every command module
+and must stay fast (``tests/test_startup.py``); light modules (errors, options, progress)
+are imported at the top.
 """
 
 from __future__ import annotations
@@ -15,6 +21,7 @@ import sys
 import warnings
 
 from usdmotion.cli.app import app
+from usdmotion.errors import UsdMotionError
 
 _COMMAND_ORDER = ("convert", "info", "positions")
 #: Help panels by command module (``usdmotion --help`` groups commands by what they are for).
@@ -26,15 +33,28 @@ _PANELS = {
 }
 
 
-def _load_commands() -> None:
+def _command_modules() -> list[str]:
+    """The command modules' names, in help order."""
     names = [m.name for m in pkgutil.iter_modules(__path__) if not m.name.startswith("_") and m.name != "app"]
-    names.sort(key=lambda n: (_COMMAND_ORDER.index(n) if n in _COMMAND_ORDER else len(_COMMAND_ORDER), n))
-    for name in names:
+    return sorted(names, key=lambda n: (_COMMAND_ORDER.index(n) if n in _COMMAND_ORDER else len(_COMMAND_ORDER), n))
+
+
+def _load_commands(argv: list[str] | None = None) -> None:
+    """Import the command modules: only the invoked one where ``argv`` names one (start-up is
+    the user's time: ``usdmotion info`` need not import the renderer's or retargeter's CLI),
+    none for ``--version`` alone, else all of them (``argv`` None, ``--help``, an unknown command)."""
+    names = _command_modules()
+    invoked = next((a for a in argv or () if not a.startswith("-")), None)
+    module = invoked.replace("-", "_") if invoked else None
+    version_only = invoked is None and argv is not None and "--version" in argv
+    for name in [] if version_only else [module] if module in names else names:
         importlib.import_module(f"{__name__}.{name}")
+    order = {f"{__name__}.{name}": i for i, name in enumerate(names)}
+    app.registered_commands.sort(key=lambda info: order.get(getattr(info.callback, "__module__", ""), len(order)))
     for info in app.registered_commands:
-        module = info.callback.__module__.rsplit(".", 1)[-1] if info.callback else ""
+        module_name = info.callback.__module__.rsplit(".", 1)[-1] if info.callback else ""
         if not isinstance(info.rich_help_panel, str):  # typer's unset default is a placeholder
-            info.rich_help_panel = _PANELS.get(module, "Edit")
+            info.rich_help_panel = _PANELS.get(module_name, "Edit")
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
@@ -50,9 +70,7 @@ def main(argv: list[str] | None = None) -> int:
     """Run the CLI; returns the exit code (0 ok, 1 checks failed / internal error, 2 bad input)."""
     import typer
 
-    from usdmotion.errors import UsdMotionError
-
-    _load_commands()
+    _load_commands(sys.argv[1:] if argv is None else argv)
     debug = bool(os.environ.get("USDMOTION_DEBUG"))
     previous = warnings.showwarning
     warnings.showwarning = _show_warning

@@ -9,6 +9,7 @@ from typing import Annotated
 import typer
 
 from usdmotion.cli._options import ReadOptions, parse_start_stop
+from usdmotion.errors import InputError, UsdMotionWarning
 
 SPEC_SUFFIXES = (".json", ".yaml", ".yml")
 
@@ -89,7 +90,6 @@ def prepare(path: Path, read: ReadOptions, frames: str | None):
     """``(motion sliced to --frames, first frame)``; warns about a leading rest-pose frame."""
     import warnings
 
-    from usdmotion.errors import UsdMotionWarning
     from usdmotion.ops.analyse.measures import slice_frames
 
     motion = read_any(path, read)
@@ -107,7 +107,6 @@ def body_for(motion, path: Path, com: bool, sex: SexChoice, segments: Path | Non
     import warnings
 
     from usdmotion.anthropometry import body_model, load_segment_map
-    from usdmotion.errors import InputError, UsdMotionWarning
 
     if not com:
         return None

@@ -16,6 +16,8 @@ from typing import Annotated
 import typer
 
 from usdmotion.cli._options import ReadOptions
+from usdmotion.cli._progress import progress
+from usdmotion.errors import InputError, OutputError
 
 Output = Annotated[Path, typer.Argument(help="Output motion: .bvh, .usd, .usda, .usdc or .usdz.", show_default=False)]
 Joint = Annotated[str | None, typer.Option("--joint", help="Act on this joint only (default: the whole body).",
@@ -30,7 +32,6 @@ Keys = Annotated[list[str] | None, typer.Option("--key", help="A key FRAME=VALUE
 @contextlib.contextmanager
 def naming(path: Path) -> Iterator[None]:
     """Turn library editing errors into one-line input errors naming ``path``."""
-    from usdmotion.errors import InputError
     from usdmotion.ops.edit import EditError
 
     try:
@@ -41,8 +42,6 @@ def naming(path: Path) -> Iterator[None]:
 
 def run_edit(source: Path, output: Path, operation: Callable, what: str, read: ReadOptions = ReadOptions()) -> None:
     """Read ``source`` with ``read``, apply ``operation(motion)``, write ``output``, report."""
-    from usdmotion.cli._progress import progress
-    from usdmotion.errors import OutputError
     from usdmotion.io import write_motion
 
     if source.resolve() == output.resolve():

@@ -13,6 +13,8 @@ from typing import Annotated
 
 import typer
 
+from usdmotion.cli._progress import progress
+
 
 class RootOffsetChoice(str, Enum):
     auto = "auto"
@@ -92,7 +94,6 @@ class ReadOptions:
     def read(self, path: Path):
         """The motion in ``path`` (progress shown for slow files)."""
         # Deferred so that loading the CLI (``--version``, ``--help``) does not import NumPy.
-        from usdmotion.cli._progress import progress
         from usdmotion.io import read_motion
 
         with progress(f"reading {path.name}"):

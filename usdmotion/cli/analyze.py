@@ -10,6 +10,7 @@ import typer
 
 from usdmotion.cli._analysis import (Cutoff, EulerOrder, FileUnits, Filter, FilterChoice, Frames, MotionInput,
                                      SexChoice, body_for, prepare)
+from usdmotion.cli._analysis_report import print_summary
 from usdmotion.cli._options import Json, ReadOptions, reads_motion
 from usdmotion.cli.app import app
 
@@ -43,7 +44,6 @@ def analyze(
     read: ReadOptions = ReadOptions(),
 ) -> None:
     """Kinematics per joint and frame, centre of mass, summary statistics, tables and plots."""
-    from usdmotion.cli._analysis_report import print_summary
     from usdmotion.ops.analyse.measures import analyse, select_joints
     from usdmotion.ops.analyse.report import summary as summarise
     from usdmotion.ops.analyse.report import write_kinematics, write_summary

@@ -9,6 +9,7 @@ from typing import Annotated
 import typer
 
 from usdmotion.cli._analysis import Cutoff, FileUnits, Filter, FilterChoice, Frames, MotionInput, prepare
+from usdmotion.cli._analysis_report import print_violations
 from usdmotion.cli._options import Json, ReadOptions, reads_motion
 from usdmotion.cli.app import app
 
@@ -28,7 +29,6 @@ def check(
 ) -> None:
     """Check joint ranges of motion and speeds against limits; exit code 1 if any is violated."""
     from usdmotion.check import check_motion, load_limits
-    from usdmotion.cli._analysis_report import print_violations
     from usdmotion.ops.analyse.smoothing import FilterSpec
 
     rules = load_limits(limits)

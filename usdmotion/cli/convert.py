@@ -9,7 +9,9 @@ from typing import Annotated
 import typer
 
 from usdmotion.cli._options import InputPath, ReadOptions, UpAxisChoice, reads_motion
+from usdmotion.cli._progress import progress
 from usdmotion.cli.app import app
+from usdmotion.errors import OutputError
 
 
 @app.command()
@@ -29,8 +31,6 @@ def convert(
     read: ReadOptions = ReadOptions(),
 ) -> None:
     """Convert a motion between BVH, OpenUSD (UsdSkel) and glTF 2.0 (GLB)."""
-    from usdmotion.cli._progress import progress
-    from usdmotion.errors import OutputError
     from usdmotion.io import write_motion
 
     if source.resolve() == output.resolve():

@@ -8,6 +8,7 @@ from typing import Annotated
 import typer
 
 from usdmotion.cli._options import InputPath, ReadOptions, parse_start_stop, reads_motion
+from usdmotion.cli._progress import progress
 from usdmotion.cli.app import app
 
 Opt = typer.Option
@@ -40,7 +41,6 @@ def render(
     read: ReadOptions = ReadOptions(),
 ) -> None:
     """Render a motion offscreen to a video or image sequence (skinned body, stick figure)."""
-    from usdmotion.cli._progress import progress
     from usdmotion.render import RenderOptions, output_frames, render_motion
 
     width, height = _size(size)
@@ -53,7 +53,7 @@ def render(
                             labels=(source.name, compare.name if compare else ""))
     total = len(output_frames(motion, options)[0])
     with progress(f"rendering {output.name}", total=total, unit="frames") as update:
-        result = render_motion(motion, output, options, other, progress=lambda n: update(n))
+        result = render_motion(motion, output, options, other, progress=update)
     t = result.timings
     typer.echo(f"wrote {output}: {result.frames} frames {width}x{height} in {result.seconds:.1f} s "
                f"({result.fps:.1f} frames/s; body {t.get('build', 0):.1f} s, skinning {t.get('skin', 0):.1f} s, "

@@ -9,6 +9,7 @@ from typing import Annotated
 import typer
 
 from usdmotion.cli._options import InputPath, ReadOptions, UpAxisChoice, reads_motion
+from usdmotion.cli._progress import progress
 from usdmotion.cli.app import app
 
 
@@ -77,7 +78,6 @@ def retarget(
     read: ReadOptions = ReadOptions(),
 ) -> None:
     """Retarget a motion onto a target skeleton, or onto its own with joints removed/added."""
-    from usdmotion.cli._progress import progress
     from usdmotion.ops.retarget.files import retarget_files
     from usdmotion.ops.retarget.solve import enable_compilation_cache
 
@@ -87,7 +87,7 @@ def retarget(
     with progress("retargeting", total=motion.n_frames, unit="frames") as update:
         line = retarget_files(motion, source, output, target_motion, target, _names(remove), add or [], map_file,
                               method.value, iterations, lengths.value, directions.value, scale, init.value, local,
-                              report, lambda n: update(advance=n))
+                              report, update)
     typer.echo(line)
 
 

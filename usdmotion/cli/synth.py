@@ -7,7 +7,9 @@ from typing import Annotated
 
 import typer
 
+from usdmotion.cli._analysis import read_any
 from usdmotion.cli.app import app
+from usdmotion.errors import UsdMotionError
 
 
 @app.command()
@@ -21,8 +23,6 @@ def synth(
     show_spec: Annotated[bool, typer.Option("--print-spec", help="Print the (example) document and exit.")] = False,
 ) -> None:
     """Synthesise a motion from joint-angle tables (e.g. the 3-segment giant swing)."""
-    from usdmotion.cli._analysis import read_any
-    from usdmotion.errors import UsdMotionError
     from usdmotion.io import write_motion
     from usdmotion.synthesis import EXAMPLES, example_path
 

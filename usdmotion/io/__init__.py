@@ -15,8 +15,10 @@ from usdmotion.motion import Motion
 
 BVH_EXTENSIONS = (".bvh",)
 USD_EXTENSIONS = (".usd", ".usda", ".usdc", ".usdz")
+AMC_EXTENSIONS = (".amc",)
 GLTF_EXTENSIONS = (".glb", ".gltf")
 KNOWN = f".bvh, {', '.join(USD_EXTENSIONS)}, {', '.join(GLTF_EXTENSIONS)}"
+READABLE = f"{KNOWN}, {', '.join(AMC_EXTENSIONS)}"
 
 
 def _kind(path: Path) -> str | None:
@@ -25,6 +27,8 @@ def _kind(path: Path) -> str | None:
         return "bvh"
     if ext in USD_EXTENSIONS:
         return "usd"
+    if ext in AMC_EXTENSIONS:
+        return "amc"
     if ext in GLTF_EXTENSIONS:
         return "gltf"
     return None
@@ -36,19 +40,20 @@ def _is_auto(value) -> bool:
 
 def read_motion(path: str | os.PathLike, root_offset: str = "auto", units: str | float | None = None,
                 up_axis: str | None = None, lenient: bool = False, ignore_joint_positions: bool = False,
-                skeleton: str | None = None, resample: bool = False) -> Motion:
-    """Read a BVH, UsdSkel or glTF 2.0 (.glb/.gltf) file.
+                skeleton: str | os.PathLike | None = None, resample: bool = False) -> Motion:
+    """Read a BVH, UsdSkel, glTF 2.0 (.glb/.gltf) or Acclaim AMC file.
 
     For BVH, ``units`` (default ``"cm"``) and ``up_axis`` (default ``"Y"``) state what the
     file does not; ``"auto"`` guesses them from the body (:mod:`usdmotion.units_guess`,
     with a warning giving the reason). For USD and glTF they come from the file (glTF:
     metres, Y up, or the source's where usdmotion wrote it) and, if given (not
-    ``"auto"``), override it. ``skeleton`` names the ASF skeleton file of ``.amc`` input,
-    the Skeleton prim path of a USD stage with several skeletons, or the skin (index or
-    name) of a glTF file with several; inputs that cannot take it raise ``InputError``.
-    ``resample`` reads a USD animation's unevenly spaced time samples at even steps.
-    Whatever the format, a human skeleton whose height in the chosen units is outside
-    0.5–3 m warns.
+    ``"auto"``), override it. For AMC, units come from the ASF unless given.
+    ``skeleton`` names the ASF skeleton file of ``.amc`` input (default: the one beside it, see
+    :func:`usdmotion.io.amc.find_skeleton`), the Skeleton prim path of a USD stage with several
+    skeletons, or the skin (index or name) of a glTF file with several; inputs that cannot take
+    it raise ``InputError``. ``resample`` reads a USD animation's unevenly spaced time samples
+    at even steps. Whatever the format, a human skeleton whose height in the chosen units is
+    outside 0.5–3 m warns.
     """
     from usdmotion.units_guess import apply_body_guess
 
@@ -76,7 +81,14 @@ def read_motion(path: str | os.PathLike, root_offset: str = "auto", units: str |
         motion = override_units_axis(read_gltf(path, skin=skeleton), None if _is_auto(units) else units,
                                      None if _is_auto(up_axis) else up_axis)
         return apply_body_guess(motion, path, False, False)
-    raise InputError(path, f"unknown input format {path.suffix!r} (use {KNOWN})")
+    if kind == "amc":
+        from usdmotion.io.amc import read_amc
+
+        return apply_body_guess(read_amc(path, skeleton=skeleton, units=None if _is_auto(units) else units),
+                                path, False, False)
+    if path.suffix.lower() == ".asf":
+        raise InputError(path, "an .asf file holds only a skeleton: read its .amc motion (with --skeleton FILE.asf)")
+    raise InputError(path, f"unknown input format {path.suffix!r} (use {READABLE})")
 
 
 def _say_meshes_dropped(motion: Motion, path: Path, why: str) -> None:

@@ -147,7 +147,7 @@ def write_usd(motion: Motion, path: str | os.PathLike, name: str | None = None,
         decorate: optional ``callable(stage, skeleton)`` that adds prims (e.g. a skinned
             mesh) before the stage is saved.
     """
-    from pxr import Sdf, Usd, UsdUtils
+    from pxr import Usd
 
     path = Path(path)
     ext = path.suffix.lower()
@@ -175,6 +175,8 @@ def write_usd(motion: Motion, path: str | os.PathLike, name: str | None = None,
             stage.GetRootLayer().Save()
             del stage
             if ext == ".usdz":
+                from pxr import Sdf, UsdUtils  # only here: UsdUtils imports UsdShade, Sdr, ... (~0.03 s)
+
                 if not UsdUtils.CreateNewUsdzPackage(Sdf.AssetPath(str(layer_path)), str(tmp)):
                     raise OutputError(f"{path}: usdz packaging failed")
         finally:

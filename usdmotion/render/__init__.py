@@ -20,6 +20,7 @@ import numpy as np
 from usdmotion.errors import UsdMotionError
 from usdmotion.kinematics import fk_arrays, local_translations
 from usdmotion.motion import Motion
+from usdmotion.progress import Progress
 
 CHUNK = 32
 STYLES = ("body", "stick", "both")
@@ -152,10 +153,11 @@ def _joint_positions(motion: Motion, frames: np.ndarray) -> np.ndarray:
 
 
 def render_motion(motion: Motion, output: str | Path, options: RenderOptions = RenderOptions(),
-                  other: Motion | None = None, progress=None) -> RenderResult:
+                  other: Motion | None = None, progress: Progress | None = None) -> RenderResult:
     """Render ``motion`` (and ``other``, compared) to ``output`` (``.mp4`` or ``dir/####.png``).
 
-    ``progress``: optional ``update(advance=…)`` callable, called once per frame.
+    ``progress``: optional :class:`usdmotion.progress.Progress`, called ``(frames done, total, message)``
+    once per frame.
     Nothing is left at ``output`` if anything fails.
     """
     from usdmotion.render.output import WriterThread, check_output, open_writer

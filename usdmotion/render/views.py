@@ -180,7 +180,7 @@ class Views:
                 draw += time.perf_counter() - t0
                 emit(image, int(i))
                 if progress is not None:
-                    progress(1)
+                    progress(int(i) + 1, n, "rendering")
         timings.update(skin=skin, render=draw)
 
     def _overlay(self, images: list[np.ndarray], i: int) -> None:

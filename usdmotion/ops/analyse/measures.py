@@ -41,9 +41,11 @@ import numpy as np
 from usdmotion import quat_planes as Q
 from usdmotion.anthropometry import BodyModel
 from usdmotion.errors import InputError
-from usdmotion.kinematics import rest_positions, world_rotations_positions
-from usdmotion.motion import Motion
+from usdmotion.channels import default_channels, rotation_order
+from usdmotion.kinematics import depth_levels, rest_positions, world_rotations_positions
+from usdmotion.motion import ROTATION_CHANNELS, Motion
 from usdmotion.ops.analyse.smoothing import FilterSpec, smooth_derivatives
+from usdmotion.rotations import check_euler_order, closest_equivalent_euler
 from usdmotion.skeleton_names import children_map, distal_joints, proximal_joint, rest_tolerance
 
 AXES = ("x", "y", "z")
@@ -150,8 +152,6 @@ def world_rates(world_q: np.ndarray, omega_rel: np.ndarray, alpha_rel: np.ndarra
     Component-first arrays: ``world_q (4, J, F)``, rates ``(3, J, F)``; returns two
     ``(3, J, F)``. One step per depth level, all frames at once.
     """
-    from usdmotion.kinematics import depth_levels
-
     u = _rotate_cf(world_q, omega_rel)
     w = _rotate_cf(world_q, alpha_rel)
     levels = depth_levels(parents)
@@ -205,10 +205,6 @@ def euler_angles(motion: Motion, order: str | None = None) -> tuple[np.ndarray, 
     joints. Without file values, angles are unwrapped over time (continuous, may pass
     ±180°). End sites get zeros and order ``""``.
     """
-    from usdmotion.channels import default_channels, rotation_order
-    from usdmotion.motion import ROTATION_CHANNELS
-    from usdmotion.rotations import check_euler_order, closest_equivalent_euler
-
     layout = motion.channels or default_channels(motion)
     file_layout = motion.channels
     if order is not None:

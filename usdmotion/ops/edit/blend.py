@@ -22,10 +22,12 @@ from collections.abc import Mapping
 import numpy as np
 
 from usdmotion import quat_planes as Q
+from usdmotion.kinematics import joint_positions
 from usdmotion.motion import Motion
 from usdmotion.ops.edit import align as A
 from usdmotion.ops.edit import trajectory as T
-from usdmotion.ops.edit._common import EditError, animated_translation_joints, rebuild, select_joints, smoothstep
+from usdmotion.ops.edit._common import (EditError, animated_translation_joints, joint_index, rebuild, select_joints,
+                                        smoothstep)
 from usdmotion.ops.edit.timewarp import resample, sample_motion, sample_values, speed
 
 CURVES = ("smooth", "linear")
@@ -179,8 +181,6 @@ def blend(m0: Motion, m1: Motion, transition: float | None = None, at: float | N
 
 
 def _joint(motion: Motion, name: str) -> int:
-    from usdmotion.ops.edit._common import joint_index
-
     return joint_index(motion, name)
 
 
@@ -232,8 +232,6 @@ def _dtw_warp(m0, m1, index, at, transition, align_joint, align_channel) -> np.n
 
 def _pose_features(m0, m1, index, at, transition):
     """Joint positions in the root's heading frame (the whole body), both skeletons."""
-    from usdmotion.kinematics import joint_positions
-
     common = np.flatnonzero(index >= 0)
     feats = []
     for motion, joints, frames in ((m0, common, slice(at, at + transition)), (m1, index[common], slice(None))):

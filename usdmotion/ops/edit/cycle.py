@@ -21,6 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from usdmotion import quat_planes as Q
+from usdmotion.kinematics import joint_positions
 from usdmotion.motion import Motion
 from usdmotion.ops.edit import trajectory as T
 from usdmotion.ops.edit._common import EditError, frame_range, smoothstep
@@ -90,8 +91,6 @@ def loop_end(motion: Motion, start: int, transition: int, min_period: float = 0.
     for the best ``P``.
     """
     from numpy.lib.stride_tricks import sliding_window_view
-
-    from usdmotion.kinematics import joint_positions
 
     n = transition
     segment = trim(motion, start, None)

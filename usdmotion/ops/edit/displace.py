@@ -21,7 +21,7 @@ import numpy as np
 from usdmotion import quat_planes as Q
 from usdmotion.motion import Motion
 from usdmotion.ops.edit._common import EditError, joint_index, rebuild
-from usdmotion.rotations import euler_to_quat, quat_log
+from usdmotion.rotations import euler_to_quat, quat_conjugate, quat_log, quat_mul
 
 FRAMES = ("local", "parent")
 CHANNELS = ("rx", "ry", "rz", "tx", "ty", "tz")
@@ -167,8 +167,6 @@ def _rotation_change(motion: Motion, j: int, f: int, key: Mapping, frame: str) -
         return quat_log(_euler_quat(motion, j, key["rotate"], key.get("order")))
     target = _euler_quat(motion, j, key["rotation"], key.get("order"))
     q = motion.rotations[f, j]
-    from usdmotion.rotations import quat_conjugate, quat_mul
-
     change = quat_mul(quat_conjugate(q), target) if frame == "local" else quat_mul(target, quat_conjugate(q))
     return quat_log(change)
 

@@ -15,6 +15,7 @@ from functools import lru_cache
 from pathlib import Path
 
 from usdmotion.errors import InputError
+from usdmotion.io import read_motion
 from usdmotion.motion import Motion
 from usdmotion.ops.edit._common import EditError, frames_of
 from usdmotion.resources import resource_path
@@ -146,8 +147,6 @@ def _apply(motion: Motion, op: dict, base: Path, read) -> Motion:
 
 
 def _read(path: Path) -> Motion:
-    from usdmotion.io import read_motion
-
     if not path.is_file():
         raise EditError(f"blend: no such file {path}")
     return read_motion(path)

@@ -15,7 +15,7 @@ import numpy as np
 
 from usdmotion import quat_planes as Q
 from usdmotion.motion import Motion
-from usdmotion.ops.edit._common import EditError, frame_range, rebuild, select_joints
+from usdmotion.ops.edit._common import EditError, animated_translation_joints, frame_range, rebuild, select_joints
 
 INTERPOLATIONS = ("cubic", "linear")
 
@@ -89,8 +89,6 @@ def sample_motion(motion: Motion, tau: np.ndarray, interp: str = "cubic",
     root = sample_values(motion.root_translation, tau, interp)
     jt = None
     if motion.joint_translations is not None:
-        from usdmotion.ops.edit._common import animated_translation_joints
-
         jt = np.repeat(motion.joint_translations[:1], len(tau), axis=0)
         moving = np.flatnonzero(animated_translation_joints(motion) & mask)
         if moving.size:

@@ -7,8 +7,13 @@ import json
 from pathlib import Path
 
 from usdmotion.errors import OutputError
+from usdmotion.io import BVH_EXTENSIONS, USD_EXTENSIONS, write_motion
+from usdmotion.io.atomic import atomic_output
 from usdmotion.motion import Motion
 from usdmotion.ops.retarget.hierarchy import RetargetError, parse_add
+from usdmotion.ops.retarget.jointmap import load_joint_map
+from usdmotion.ops.retarget.pipeline import retarget
+from usdmotion.progress import Progress
 
 
 def parse_scale(text) -> str | float:
@@ -31,16 +36,11 @@ def retarget_files(source: Motion, source_path: Path, output: Path, target: Moti
                    target_path: Path | None = None, remove=(), add=(), map_path: Path | None = None,
                    method: str = "lm", iterations: int | None = None, lengths: str = "source",
                    directions: str = "auto", scale="units", init: str = "auto", local: bool = False,
-                   report_path: Path | None = None, progress=None) -> str:
+                   report_path: Path | None = None, progress: Progress | None = None) -> str:
     """Retarget, write ``output`` (BVH or USD by extension) and the JSON report; return a summary line.
 
     Nothing is written when anything fails (checks run before the optimiser).
     """
-    from usdmotion.io import BVH_EXTENSIONS, USD_EXTENSIONS, write_motion
-    from usdmotion.io.atomic import atomic_output
-    from usdmotion.ops.retarget.jointmap import load_joint_map
-    from usdmotion.ops.retarget.pipeline import retarget
-
     output = Path(output)
     if output.suffix.lower() not in BVH_EXTENSIONS + USD_EXTENSIONS:
         raise OutputError(f"{output}: unknown output format {output.suffix!r} (use .bvh, {', '.join(USD_EXTENSIONS)})")

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from usdmotion.errors import UsdMotionError
-from usdmotion.motion import ROTATION_CHANNELS, Motion
+from usdmotion.motion import ROTATION_CHANNELS, Motion, validate_topology
 
 DEFAULT_ROTATION_CHANNELS = ("Zrotation", "Xrotation", "Yrotation")
 #: Relative length change below which step 1 leaves an offset untouched (rigid bones).
@@ -66,8 +66,6 @@ class Rig:
     path: str | None = None
 
     def __post_init__(self) -> None:
-        from usdmotion.motion import validate_topology
-
         parents = np.asarray(self.parents, dtype=np.int64)
         ok, reason = validate_topology(parents)
         if not ok:

@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from usdmotion.errors import InputError
+from usdmotion.schemas import schema
 from usdmotion.skeleton_names import detect_profile, names_by_key, normalise_name, profile_joints, rig_profiles
 from usdmotion.skeleton_names import strip_namespace  # noqa: F401 - its old import path
 
@@ -60,8 +61,6 @@ class JointMap:
 
 def _validate(doc, schema_name: str, path) -> None:
     import jsonschema
-
-    from usdmotion.schemas import schema
 
     validator = jsonschema.Draft202012Validator(schema(schema_name))
     errors = sorted(validator.iter_errors(doc), key=lambda e: list(e.absolute_path))

@@ -39,6 +39,7 @@ from usdmotion.ops.retarget.jointmap import JointMap, resolve_map
 from usdmotion.ops.retarget.losses import frame_losses
 from usdmotion.ops.retarget.problem import Problem
 from usdmotion.ops.retarget.solve import solve
+from usdmotion.progress import Progress
 from usdmotion.rotations import matrix_to_quat, quat_between, quat_conjugate, quat_mul, quat_rotate
 
 METHODS = ("lm", "adam")
@@ -388,7 +389,7 @@ def _problem(setup: Setup):
 def retarget(source: Motion, target: Motion | None = None, *, remove=(), add=(), joint_map: JointMap | None = None,
              method: str = "lm", iterations: int | None = None, lengths: str = "source", directions: str = "auto",
              scale="units", init: str = "auto", local: bool = False, source_path: str | None = None,
-             target_path: str | None = None, progress=None) -> RetargetResult:
+             target_path: str | None = None, progress: Progress | None = None) -> RetargetResult:
     """Retarget ``source`` onto ``target`` (a skeleton; its animation is ignored) or onto
     the source's own skeleton with joints removed/added.
 
@@ -408,7 +409,8 @@ def retarget(source: Motion, target: Motion | None = None, *, remove=(), add=(),
         init: ``"auto"``, ``"copy"``, ``"compose"`` (derived rigs) or ``"aim"``.
         local: optimise only joints around changed bones (derived rigs).
         source_path, target_path: file names for messages and the report.
-        progress: optional ``callable(frames_done)`` called after every chunk.
+        progress: optional :class:`usdmotion.progress.Progress` ``(frames done, n_frames, message)``,
+            called after every chunk.
 
     Returns:
         :class:`RetargetResult` with the new motion (target skeleton, channel layout,

@@ -44,6 +44,7 @@ from usdmotion.ops.retarget.problem import (ADAM_ITERATIONS, ADAM_LR, LM_ATOL, L
                                             LM_LAMBDA0, LM_LAMBDA_MAX, LM_LAMBDA_MIN, LM_NULL_DAMPING, LM_RTOL,
                                             LM_RTOL_TOTAL, LM_UP, Problem, masks)
 from usdmotion.ops.retarget.tree_step import make_tree_step
+from usdmotion.progress import Progress
 from usdmotion.rotations import euler_to_quat, quat_exp, quat_mul, quat_normalize, quat_rotate, quat_to_euler
 
 # JAX (and optax) are imported inside the functions that use them: a deliberately deferred
@@ -375,7 +376,7 @@ class Solution:
 
 def solve(problem: Problem, q0: np.ndarray, t0: np.ndarray, targets: np.ndarray, method: str = "lm",
           iterations: int | None = None, chunk: int | None = None, lr: float = ADAM_LR,
-          progress=None) -> Solution:
+          progress: Progress | None = None) -> Solution:
     """Optimise rotations (and free translations) of all frames.
 
     Args:
@@ -387,7 +388,8 @@ def solve(problem: Problem, q0: np.ndarray, t0: np.ndarray, targets: np.ndarray,
         iterations: LM's maximum (default 100; it stops when converged) or Adam's count (500).
         chunk: frames per compiled call (default :func:`chunk_plan`).
         lr: Adam's learning rate.
-        progress: optional ``callable(frames_done)``.
+        progress: optional :class:`usdmotion.progress.Progress`, called ``(frames done, n_frames, message)``
+            after every chunk.
     """
 
     import jax
@@ -420,7 +422,7 @@ def solve(problem: Problem, q0: np.ndarray, t0: np.ndarray, targets: np.ndarray,
         ran = max(ran, int(result[4]))
         calls += 1
         if progress is not None:
-            progress(stop - start)
+            progress(stop, n_frames, "retargeting")
     q, t, loss, initial = (np.concatenate(parts) for parts in zip(*outs))
     q /= np.linalg.norm(q, axis=-1, keepdims=True)
     return Solution(q, t, loss, initial, compile_s, run_s, chunk, calls, ran)

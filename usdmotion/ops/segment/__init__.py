@@ -5,6 +5,7 @@
 ``clip``            one segment as a ``Motion``
 ``find_roles``      which joints are hips, knees, wrists... (``roles``)
 ``score_cuts``      detected cuts against labels (``evaluate``)
+``cut_confidence``  confidence and change region of each kcpd cut (``cuts``)
 ``export_clips``    write the segments as motion files (``files``)
 ==================  ==========================================================
 """

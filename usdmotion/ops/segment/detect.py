@@ -32,6 +32,8 @@ import numpy as np
 from usdmotion.errors import InputError
 from usdmotion.kinematics import fk_arrays, local_translations
 from usdmotion.motion import Motion
+from usdmotion.ops.segment.cuts import (LOW_CONFIDENCE, cut_confidence, merge_transitions,  # noqa: F401
+                                        quietest_in_region)
 from usdmotion.ops.segment.roles import LIMB_BONES, find_roles
 
 METHODS = ("kcpd", "heuristic")
@@ -40,11 +42,17 @@ DEFAULT_METHOD = "kcpd"
 DEFAULT_PARAM = 0.5
 #: Low-pass cut-off of the norm signal (Hz) for the heuristic and the plot.
 DEFAULT_CUTOFF_HZ = 2.0
-#: Kernel change-point defaults: penalty per cut, speed weight (s), minimum segment (s), rate (Hz).
-DEFAULT_PENALTY = 6.0
-DEFAULT_SPEED_WEIGHT = 0.25
+#: Kernel change-point defaults: penalty per cut = ``DEFAULT_PENALTY_SCALE · ln N`` (``N`` samples at
+#: ``KCPD_RATE_HZ``; a label-free rule from the take's length), speed weight (s), minimum segment (s),
+#: rate (Hz), feature set, and the longest segment treated as a transition between two actions (s).
+DEFAULT_PENALTY_SCALE = 1.0
+DEFAULT_SPEED_WEIGHT = 0.5
 DEFAULT_MIN_LENGTH_S = 1.0
 KCPD_RATE_HZ = 10.0
+FEATURE_SETS = ("paper", "extended")
+DEFAULT_FEATURES = "extended"
+DEFAULT_TRANSITION_S = 1.5
+DEFAULT_MIN_CONFIDENCE = 0.0
 #: Cut refinement: moving average (s) of the bone energy, farthest move (s) to its local minimum.
 DEFAULT_REST_SMOOTH_S = 0.1
 DEFAULT_REST_REACH_S = 0.5
@@ -70,6 +78,10 @@ class Segmentation:
         candidates: ``(C,)`` the paper's candidate cuts on ``filtered`` (for the plot).
         energy: ``(F,)`` bone energy, rad²/s² (:func:`bone_energy`; kcpd cuts move to its minima).
         roles: ``{role: joint name}`` used for the feature.
+        confidence: ``(K,)`` kcpd: confidence of each cut, 0..1 (:func:`cut_confidence`); ``None``
+            for the heuristic.
+        regions: ``(K, 2)`` kcpd: inclusive frame range of each cut's change region (the
+            refinement never leaves it); ``None`` for the heuristic.
     """
 
     cuts: np.ndarray
@@ -83,6 +95,8 @@ class Segmentation:
     candidates: np.ndarray | None = field(default=None, repr=False)
     energy: np.ndarray | None = field(default=None, repr=False)
     roles: dict = field(default_factory=dict)
+    confidence: np.ndarray | None = field(default=None, repr=False)
+    regions: np.ndarray | None = field(default=None, repr=False)
 
     def bounds(self) -> np.ndarray:
         """``(S, 2)`` first and last frame (inclusive) of every segment."""
@@ -103,8 +117,14 @@ class Segmentation:
              "start_time": round(a / self.fps, 6), "end_time": round(b / self.fps, 6)}
             for i, (a, b) in enumerate(self.bounds())
         ]
-        return {"method": self.method, "params": dict(self.params), "fps": self.fps, "frames": self.n_frames,
-                "roles": dict(self.roles), "cuts": [int(c) for c in self.cuts], "segments": segments}
+        doc = {"method": self.method, "params": dict(self.params), "fps": self.fps, "frames": self.n_frames,
+               "roles": dict(self.roles), "cuts": [int(c) for c in self.cuts], "segments": segments}
+        if self.confidence is not None:
+            doc["cut_details"] = [
+                {"frame": int(c), "confidence": round(float(p), 4), "low_confidence": bool(p < LOW_CONFIDENCE),
+                 "region": [int(lo), int(hi)]}
+                for c, p, (lo, hi) in zip(self.cuts, self.confidence, self.regions)]
+        return doc
 
 
 # --------------------------------------------------------------------------- feature
@@ -126,7 +146,12 @@ def role_positions(motion: Motion, roles: Mapping[str, int]) -> dict[str, np.nda
     remap = np.full(motion.n_joints, -1)
     remap[keep] = np.arange(keep.size)
     sub_parents = np.where(motion.parents[keep] >= 0, remap[motion.parents[keep]], -1)
-    _, world = fk_arrays(motion.rotations[:, keep], local_translations(motion)[:, keep], sub_parents)
+    if motion.joint_translations is None:  # only the kept joints' translations, not all J
+        translations = np.broadcast_to(motion.offsets[keep], (motion.n_frames, keep.size, 3)).copy()
+        translations[:, 0] = motion.root_translation                     # keep[0] is the root
+    else:
+        translations = local_translations(motion)[:, keep]
+    _, world = fk_arrays(motion.rotations[:, keep], translations, sub_parents)
     return {role: world[:, remap[j]] for role, j in roles.items()}
 
 
@@ -228,7 +253,12 @@ def median_gamma(x: np.ndarray, limit: int = _GAMMA_SAMPLE) -> float:
     return 1.0 / med if med > 0 else 1.0
 
 
-def kernel_change_points(x: np.ndarray, penalty: float = DEFAULT_PENALTY, min_size: int = 10,
+def penalty_for_length(n_samples: int, scale: float = DEFAULT_PENALTY_SCALE) -> float:
+    """Label-free penalty per cut, ``scale · ln(n_samples)`` (BIC-like: grows with the take's length)."""
+    return float(scale * math.log(max(n_samples, 2)))
+
+
+def kernel_change_points(x: np.ndarray, penalty: float | None = None, min_size: int = 10,
                          gamma: float | None = None) -> np.ndarray:
     """Change points of the rows of ``x`` (Gaussian-kernel cost, PELT); sample indices."""
     import ruptures
@@ -236,8 +266,34 @@ def kernel_change_points(x: np.ndarray, penalty: float = DEFAULT_PENALTY, min_si
     if x.shape[0] < 2 * min_size:
         return np.zeros(0, np.int64)
     gamma = median_gamma(x) if gamma is None else gamma
+    penalty = penalty_for_length(x.shape[0]) if penalty is None else penalty
     algo = ruptures.KernelCPD(kernel="rbf", min_size=min_size, params={"gamma": gamma}).fit(x)
     return np.asarray(algo.predict(pen=penalty)[:-1], dtype=np.int64)
+
+
+def body_axis_angles(positions: Mapping[str, np.ndarray]) -> np.ndarray:
+    """``(F, 10)`` angles (radians) that tell *where* the limbs point, not only how far from the
+    spine: each limb bone against the hip line (right hip → left hip; 8 angles), the shoulder line
+    against the hip line seen along the spine (torso twist) and the spine against the vertical
+    axis of the pelvis frame's mean (lean). Like the paper's angles they do not depend on the
+    rig's units, rest pose, position or heading."""
+    centre = positions["chest"] - positions["root"]
+    side = positions["left_hip"] - positions["right_hip"]
+    shoulders = positions["left_shoulder"] - positions["right_shoulder"]
+
+    def angle(u, v):
+        dots = np.einsum("fd,fd->f", u, v)
+        norms = np.linalg.norm(u, axis=-1) * np.linalg.norm(v, axis=-1)
+        return np.arccos(np.clip(np.divide(dots, norms, out=np.zeros_like(dots), where=norms > 0), -1.0, 1.0))
+
+    bones = [angle(positions[b] - positions[a], side) for _, a, b in LIMB_BONES]
+    unit = centre / np.maximum(np.linalg.norm(centre, axis=-1, keepdims=True), 1e-12)
+
+    def across(v):
+        return v - np.einsum("fd,fd->f", v, unit)[:, None] * unit
+
+    up = np.broadcast_to(np.mean(unit, axis=0), unit.shape)
+    return np.stack(bones + [angle(across(shoulders), across(side)), angle(centre, up)], axis=1)
 
 
 def bone_energy(speed: np.ndarray, fps: float, smooth_s: float = DEFAULT_REST_SMOOTH_S) -> np.ndarray:
@@ -252,20 +308,23 @@ def bone_energy(speed: np.ndarray, fps: float, smooth_s: float = DEFAULT_REST_SM
 
 
 def refine_to_rest(energy: np.ndarray, cuts: np.ndarray, fps: float,
-                   reach_s: float = DEFAULT_REST_REACH_S) -> np.ndarray:
+                   reach_s: float = DEFAULT_REST_REACH_S, regions: np.ndarray | None = None) -> np.ndarray:
     """Move each cut downhill on :func:`bone_energy` to the nearest local minimum.
 
     A change-point detector knows *which* change happened to within its pooling, not
     *where* the body passed between the two actions; people (and clip libraries) cut where
     the body moves least (the zero-velocity boundaries of Fod, Matarić & Jenkins 2002).
     Each cut follows the steeper downhill side until the energy rises again, at most
-    ``reach_s`` seconds and never past the midpoint to a neighbouring cut.
+    ``reach_s`` seconds, never past the midpoint to a neighbouring cut and, with ``regions``,
+    never out of the cut's own change region.
 
     Args:
         energy: ``(F,)`` the bone energy (:func:`bone_energy`).
         cuts: ``(K,)`` sorted frame indices in ``1 .. F-1``.
+        regions: ``(K, 2)`` inclusive frame range each cut must stay in, or ``None``.
     Returns:
-        ``(K',)`` sorted unique frame indices in ``1 .. F-1`` (K' ≤ K).
+        ``(K,)`` frame indices in ``1 .. F-1``, in the order of ``cuts`` and still strictly
+        increasing (no cut passes the midpoint to its neighbour).
     """
     cuts = np.asarray(cuts, np.int64)
     n = energy.shape[0]
@@ -275,6 +334,9 @@ def refine_to_rest(energy: np.ndarray, cuts: np.ndarray, fps: float,
     bounds = np.concatenate([[0], cuts, [n]])
     lows = np.maximum(np.maximum(cuts - reach, (bounds[:-2] + cuts) // 2 + 1), 1)
     highs = np.minimum(np.minimum(cuts + reach, (cuts + bounds[2:] - 1) // 2), n - 1)
+    if regions is not None:
+        lows = np.minimum(np.maximum(lows, regions[:, 0]), cuts)
+        highs = np.maximum(np.minimum(highs, regions[:, 1]), cuts)
     out = np.empty_like(cuts)
     for k, (c, lo, hi) in enumerate(zip(cuts, lows, highs)):   # a handful of cuts, not frames
         left = energy[lo:c + 1][::-1]                           # c, c-1, ..., lo
@@ -284,7 +346,7 @@ def refine_to_rest(energy: np.ndarray, cuts: np.ndarray, fps: float,
         rising = np.flatnonzero(np.diff(path) >= 0)
         steps = int(rising[0]) if rising.size else path.size - 1
         out[k] = c - steps if go_left else c + steps
-    return np.unique(out)
+    return out
 
 
 # --------------------------------------------------------------------------- driver
@@ -299,54 +361,87 @@ def check_length(motion: Motion, source: str | None = None) -> None:
 
 
 def segment(motion: Motion, method: str = DEFAULT_METHOD, param: float = DEFAULT_PARAM,
-            cutoff_hz: float = DEFAULT_CUTOFF_HZ, penalty: float = DEFAULT_PENALTY,
+            cutoff_hz: float = DEFAULT_CUTOFF_HZ, penalty: float | None = None,
             min_length_s: float = DEFAULT_MIN_LENGTH_S, speed_weight: float = DEFAULT_SPEED_WEIGHT,
             refine: bool = True, roles: Mapping[str, str] | None = None, preset: str | None = None,
-            source: str | None = None) -> Segmentation:
+            source: str | None = None, penalty_scale: float = DEFAULT_PENALTY_SCALE,
+            features: str = DEFAULT_FEATURES, transition_s: float = DEFAULT_TRANSITION_S,
+            min_confidence: float = DEFAULT_MIN_CONFIDENCE) -> Segmentation:
     """Cut ``motion`` into primitive actions.
 
     Args:
         method: ``"kcpd"`` (kernel change points, default) or ``"heuristic"`` (the paper's).
         param: the heuristic's swing-ratio threshold, 0..1.
         cutoff_hz: low-pass cut-off of ``Q`` (heuristic, plot).
-        penalty: kcpd cost per cut (larger: fewer cuts).
+        penalty: kcpd cost per cut (larger: fewer cuts); ``None``: ``penalty_scale · ln N``
+            (:func:`penalty_for_length`, ``N`` = samples at 10 Hz).
         min_length_s: kcpd shortest segment, seconds.
         speed_weight: kcpd weight (seconds) of the angular speeds against the angles.
-        refine: kcpd: move each cut to the nearest local minimum of the bone energy
-            (:func:`refine_to_rest`, at most 0.5 s).
+        refine: kcpd: move each cut to the quietest frame (least bone energy) of its own
+            change region (:func:`quietest_in_region`).
         roles: ``{role: joint name}`` overrides for the role map.
         preset: force a role preset (:data:`~usdmotion.ops.segment.roles.PRESET_NAMES`).
         source: file name for messages.
+        penalty_scale: kcpd: the factor of ``ln N`` when ``penalty`` is ``None``.
+        features: kcpd: ``"paper"`` (the 8 bone angles) or ``"extended"`` (plus
+            :func:`body_axis_angles`), each with its angular speeds.
+        transition_s: kcpd: an inner segment shorter than this is a transition and its two
+            cuts become one at its middle (:func:`merge_transitions`); 0 = off.
+        min_confidence: kcpd: drop cuts whose confidence (:func:`cut_confidence`) is below
+            this, then recompute the others' (0 = keep all; low ones are only marked).
     """
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r} (use {', '.join(METHODS)})")
-    if penalty <= 0 or min_length_s <= 0 or speed_weight < 0:
-        raise ValueError("penalty and min-length must be positive, speed weight non-negative")
+    if features not in FEATURE_SETS:
+        raise ValueError(f"unknown feature set {features!r} (use {', '.join(FEATURE_SETS)})")
+    if (penalty is not None and penalty <= 0) or penalty_scale <= 0 or min_length_s <= 0 or speed_weight < 0 \
+            or transition_s < 0:
+        raise ValueError("penalty and min-length must be positive, speed weight and transition non-negative")
     check_length(motion, source)
     role_index = find_roles(motion, overrides=roles, preset=preset, source=source)
-    angles = angles_from_positions(role_positions(motion, role_index))
+    positions = role_positions(motion, role_index)
+    angles = angles_from_positions(positions)
     q = norm_signal(angles)
     filtered = lowpass(q, motion.fps, min(cutoff_hz, 0.45 * motion.fps))
     candidates = swing_candidates(filtered, param)
     energy = bone_energy(angular_speed(angles, motion.fps), motion.fps)
+    confidence = regions = None
     if method == "heuristic":
         cuts = candidates
         params = {"param": param, "cutoff_hz": cutoff_hz}
     else:
-        x, pool = pooled_features(angles, motion.fps, speed_weight)
+        feature = angles if features == "paper" else np.concatenate([angles, body_axis_angles(positions)], axis=1)
+        x, pool = pooled_features(feature, motion.fps, speed_weight)
         min_size = max(2, math.ceil(min_length_s * motion.fps / pool))
-        cuts = kernel_change_points(x, penalty, min_size) * pool
-        params = {"penalty": penalty, "min_length_s": min_length_s, "speed_weight": speed_weight,
-                  "rate_hz": motion.fps / pool, "refine": refine}
+        pen = penalty_for_length(x.shape[0], penalty_scale) if penalty is None else penalty
+        gamma = median_gamma(x)
+        samples = kernel_change_points(x, pen, min_size, gamma)
+        samples, spans = merge_transitions(samples, x.shape[0], int(round(transition_s * motion.fps / pool)))
+        confidence, regions = cut_confidence(x, samples, pen, min_size, gamma)
+        if min_confidence > 0 and np.any(confidence < min_confidence):
+            sure = confidence >= min_confidence
+            samples, spans = samples[sure], spans[sure]
+            confidence, regions = cut_confidence(x, samples, pen, min_size, gamma)
+        regions = np.stack([np.minimum(regions[:, 0], spans[:, 0]), np.maximum(regions[:, 1], spans[:, 1])], 1)
+        cuts, regions = samples * pool, regions * pool
+        params = {"penalty": pen, "penalty_scale": penalty_scale if penalty is None else None,
+                  "min_length_s": min_length_s, "speed_weight": speed_weight, "rate_hz": motion.fps / pool,
+                  "features": features, "transition_s": transition_s, "min_confidence": min_confidence,
+                  "refine": refine}
+        params = {k: v for k, v in params.items() if v is not None}
         if refine:
-            params |= {"rest_smooth_s": DEFAULT_REST_SMOOTH_S, "rest_reach_s": DEFAULT_REST_REACH_S}
-    cuts = np.unique(cuts[(cuts > 0) & (cuts < motion.n_frames)])
-    if method == "kcpd" and refine:
-        cuts = refine_to_rest(energy, cuts, motion.fps)
+            params |= {"rest_smooth_s": DEFAULT_REST_SMOOTH_S}
+    keep = (cuts > 0) & (cuts < motion.n_frames)
+    cuts, first = np.unique(cuts[keep], return_index=True)
+    if confidence is not None:
+        confidence = confidence[keep][first]
+        regions = np.clip(regions[keep][first], 1, motion.n_frames - 1)
+        if refine:
+            cuts = quietest_in_region(energy, cuts, regions)
     names = {r: motion.joint_names[j] for r, j in role_index.items()}
     return Segmentation(cuts=cuts, n_frames=motion.n_frames, fps=motion.fps, method=method, params=params,
                         angles=angles, signal=q, filtered=filtered, candidates=candidates,
-                        energy=energy, roles=names)
+                        energy=energy, roles=names, confidence=confidence, regions=regions)
 
 
 def clip(motion: Motion, first: int, last: int) -> Motion:

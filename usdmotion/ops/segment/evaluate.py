@@ -34,6 +34,9 @@ from pathlib import Path
 import numpy as np
 
 from usdmotion.errors import InputError
+from usdmotion.motion import Motion
+from usdmotion.ops.segment.detect import clip
+from usdmotion.rotations import quat_slerp
 
 DEFAULT_TOLERANCE_S = 0.5
 
@@ -185,9 +188,6 @@ def synthetic_take(motions: list, blend_s: float = 0.5, source: str | None = Non
     Raises:
         InputError: the motions differ in joints, hierarchy or frame rate.
     """
-    from usdmotion.motion import Motion
-    from usdmotion.rotations import quat_slerp
-
     first: Motion = motions[0]
     for m in motions[1:]:
         if m.joint_names != first.joint_names or not np.array_equal(m.parents, first.parents):
@@ -249,8 +249,6 @@ def reordered_take(motion, labels: Labels, order, margin_frames: int = 0, blend_
     Returns:
         ``(take, labels)`` as :func:`synthetic_take`.
     """
-    from usdmotion.ops.segment.detect import clip
-
     ranges = activity_ranges(labels, motion.n_frames, margin_frames)
     order = [int(i) for i in order]
     if len(order) < 2 or not all(0 <= i < len(ranges) for i in order):

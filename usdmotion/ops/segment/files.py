@@ -14,10 +14,11 @@ from pathlib import Path
 import numpy as np
 
 from usdmotion.errors import OutputError
+from usdmotion.io import write_motion
 from usdmotion.io.atomic import atomic_output
 from usdmotion.motion import Motion
 from usdmotion.ops.segment.roles import LIMB_BONES
-from usdmotion.ops.segment.detect import Segmentation, clip
+from usdmotion.ops.segment.detect import LOW_CONFIDENCE, Segmentation, clip
 
 CLIP_FORMATS = ("bvh", "usda", "usdc")
 
@@ -36,8 +37,8 @@ def write_segments_json(seg: Segmentation, path: str | os.PathLike, source: str 
 def plot_segmentation(seg: Segmentation, path: str | os.PathLike, title: str = "",
                       highlight: int | None = None) -> Path:
     """PNG/SVG/PDF: the norm signal, its low-passed version, the paper's candidates, the cuts
-    (dashed) over shaded segments; below, the bone energy the cuts settle on, and the eight
-    bone angles."""
+    (dashed; low-confidence cuts dotted purple) over shaded segments; below, the bone energy the
+    cuts settle on, and the eight bone angles."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -55,8 +56,12 @@ def plot_segmentation(seg: Segmentation, path: str | os.PathLike, title: str = "
         c = seg.candidates
         top.plot(c / seg.fps, np.degrees(seg.filtered[c]), "v", color="tab:green", ms=4,
                  label=f"paper candidates ({c.size})")
+    low = np.zeros(seg.cuts.size, bool) if seg.confidence is None else seg.confidence < LOW_CONFIDENCE
     for k, c in enumerate(seg.cuts):
-        top.axvline(c / seg.fps, color="tab:red", ls="--", lw=1.2, label=f"cuts ({seg.cuts.size})" if k == 0 else None)
+        top.axvline(c / seg.fps, color="tab:purple" if low[k] else "tab:red", ls=":" if low[k] else "--", lw=1.2,
+                    label=f"cuts ({seg.cuts.size})" if k == 0 else None)
+    if low.any():
+        top.plot([], [], color="tab:purple", ls=":", label=f"low confidence ({int(low.sum())}): check")
     top.set_ylabel("norm signal (deg)")
     top.legend(loc="lower left", bbox_to_anchor=(0, 1.0), fontsize=8, ncol=4, frameon=False)
     fig.suptitle(title or f"{seg.method}: {len(seg.bounds())} segments", fontsize=10)
@@ -91,8 +96,6 @@ def clip_paths(seg: Segmentation, folder: Path, stem: str, fmt: str, indices: Se
 def export_clips(motion: Motion, seg: Segmentation, folder: str | os.PathLike, fmt: str = "bvh",
                  stem: str = "clip", indices: Sequence[int] | None = None) -> list[Path]:
     """Write one motion file per segment (or per segment in ``indices``); returns the paths."""
-    from usdmotion.io import write_motion
-
     if fmt not in CLIP_FORMATS:
         raise OutputError(f"unknown clip format {fmt!r} (use {', '.join(CLIP_FORMATS)})")
     folder = Path(folder)
