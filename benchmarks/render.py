@@ -6,6 +6,8 @@ the CPU, or a GPU's driver; the table names it).
     PYTHONPATH=$PWD python benchmarks/render.py [--frames 120] [--long 10000]
 
 Goal (issue 4): ≥ 25 frames/s end to end at 1280×720, skinned body, no shadows, 2 cores.
+Issue 20 adds, at 1280×720 in the same run: angles + plot panel + compare ghost ≥ 20 frames/s,
+a 2×2 layout ≥ 10 frames/s, and MSAA 4 on/off (ratios to the plain case, the peer).
 ``--long N`` also renders N frames at 320×240 to check that memory stays flat (RSS
 sampled every 500 frames). Prints a table; writes ``benchmarks/results/render.json``.
 """
@@ -45,16 +47,30 @@ def gl_renderer() -> str:
     return name
 
 
-def run_case(motion, width, height, shadows, frames, tmp: Path) -> dict:
+#: Feedback-video cases at 1280x720 (issue 20): RenderOptions extras and whether to compare.
+FEATURES = {
+    "plain": ({}, False),
+    "msaa4": ({"msaa": 4}, False),
+    "angles+panel+ghost": ({"angles": ("knee_left", "elbow_right"), "panel": "angle:knee_left,speed:RightHand"},
+                           True),
+    "2x2": ({"layout": "2x2", "camera": "side,front,top,follow"}, False),
+    "2x2+msaa4": ({"layout": "2x2", "camera": "side,front,top,follow", "msaa": 4}, False),
+}
+
+
+def run_case(motion, width, height, shadows, frames, tmp: Path, case: str = "", extra: dict | None = None,
+             other=None) -> dict:
     from usdmotion.render import RenderOptions, render_motion
 
-    options = RenderOptions(width=width, height=height, start=1, end=1 + frames * 2, fps=60.0, shadows=shadows,
-                            camera="side")
-    result = render_motion(motion, tmp / f"bench_{width}x{height}_{int(shadows)}.mp4", options)
+    settings = dict(width=width, height=height, start=1, end=1 + frames * 2, fps=60.0, shadows=shadows,
+                    camera="side")
+    settings.update(extra or {})
+    options = RenderOptions(**settings)
+    result = render_motion(motion, tmp / f"bench_{width}x{height}_{int(shadows)}_{case}.mp4", options, other)
     t = result.timings
     n = result.frames
     loop = result.seconds - t["build"]
-    return {"size": f"{width}x{height}", "shadows": shadows, "frames": n,
+    return {"case": case or "plain", "size": f"{width}x{height}", "shadows": shadows, "frames": n,
             "fps_end_to_end": n / loop, "fps_incl_body_build": result.fps,
             "body_build_s": t["build"], "skin_ms": 1e3 * t["skin"] / n, "render_ms": 1e3 * t["render"] / n,
             "encode_ms": 1e3 * t["encode"] / n, "loop_s": loop}
@@ -91,6 +107,11 @@ def main() -> None:
     tmp = Path(tempfile.mkdtemp(prefix="usdmotion-bench-"))
     renderer = gl_renderer()
     cases = [run_case(motion, w, h, s, args.frames, tmp) for (w, h) in ((1280, 720), (640, 480)) for s in (False, True)]
+    # a second take for the ghost: the same walk, 0.3 m aside
+    other = motion.with_frames(motion.rotations, motion.root_translation + np.array([0.3 / motion.meters_per_unit,
+                                                                                      0.0, 0.0]))
+    features = [run_case(motion, 1280, 720, False, args.frames, tmp, name, extra, other if compare else None)
+                for name, (extra, compare) in FEATURES.items()]
     on_cpu = any(word in renderer.lower() for word in ("llvmpipe", "softpipe", "swrast"))
     result = {
         "benchmark": "render", "input": WALK.name, "device": f"EGL {renderer} ({'CPU' if on_cpu else 'GPU'})",
@@ -98,6 +119,9 @@ def main() -> None:
         "python": platform.python_version(), "cases": cases,
         "goal": "≥ 25 frames/s end to end at 1280x720, skinned body, no shadows",
         "goal_met": bool(cases[0]["fps_end_to_end"] >= 25.0),
+        "features_1280x720": features,
+        "feature_goals": {"angles+panel+ghost ≥ 20 fps": features[2]["fps_end_to_end"] >= 20.0,
+                          "2x2 ≥ 10 fps": features[3]["fps_end_to_end"] >= 10.0},
         "load_average_at_end": os.getloadavg(),
     }
     if args.long:
@@ -114,6 +138,14 @@ def main() -> None:
           "encode-wait), body build excluded and listed separately)")
     print(f"goal ≥ 25 fps at 1280x720 no shadows: {'met' if result['goal_met'] else 'NOT met'} "
           f"({cases[0]['fps_end_to_end']:.1f} fps)")
+    plain = features[0]["fps_end_to_end"]
+    print(f"\nfeedback-video cases at 1280x720, same run (ratio to 'plain' = the peer):")
+    print(f"{'case':>20} {'fps e2e':>8} {'ratio':>6} {'render ms':>9} {'encode ms':>9}")
+    for c in features:
+        print(f"{c['case']:>20} {c['fps_end_to_end']:>8.1f} {c['fps_end_to_end'] / plain:>6.2f} "
+              f"{c['render_ms']:>9.1f} {c['encode_ms']:>9.1f}")
+    for goal, met in result["feature_goals"].items():
+        print(f"goal {goal}: {'met' if met else 'NOT met'}")
     if args.long:
         print(f"long render: {result['long']['frames']} frames in {result['long']['seconds']:.0f} s, RSS every 500 "
               f"frames: {[s[1] for s in result['long']['rss_mib_every_500_frames']]} MiB")

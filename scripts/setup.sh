@@ -16,6 +16,14 @@ if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
   .venv/bin/python -m pip install -q -e ".[test]"
   touch "$stamp"
 fi
+# The studio's web packages (three.js, uPlot), pinned by package-lock.json, served locally; Chromium for its
+# browser tests (Debian's package: Playwright drives it, no browser is downloaded from anywhere else).
+ensure_apt "studio browser tests" chromium
+web=usdmotion/studio/web
+if [ ! -f "$web/node_modules/.package-lock.json" ] || [ "$web/package-lock.json" -nt "$web/node_modules/.package-lock.json" ]; then
+  command -v npm >/dev/null 2>&1 || ensure_apt "studio web packages" npm
+  (cd "$web" && npm ci --no-audit --no-fund --loglevel=error)
+fi
 if command -v npm >/dev/null 2>&1; then
   if [ ! -d tests/gltf_validator/node_modules/gltf-validator ] \
      || [ tests/gltf_validator/package-lock.json -nt tests/gltf_validator/node_modules/.package-lock.json ]; then

@@ -6,7 +6,8 @@ meshed with marching cubes in the rest pose:
 * **Bones.** Every joint ``j`` with a parent ``p`` and a rest bone ``p → j`` of
   positive length gives a capsule driven by ``p`` (the joint whose rotation swings
   it). Bones whose child translates during the motion (a "root" joint carrying the
-  world trajectory, Bandai's ``joint_Root → Hips``) are not rigid and are skipped.
+  world trajectory, Bandai's ``joint_Root → Hips``: moving by more than half the
+  bone's length) are not rigid and are skipped.
   Joints that drive no bone of positive length but have children (CMU ``Hips``,
   ``Spine1``) get a *weight-only* sphere so they still move the skin around them;
   leaf joints without an End Site (rigs without End Sites) get a sphere in the
@@ -16,10 +17,18 @@ meshed with marching cubes in the rest pose:
   joint's name (``LeftUpLeg`` drives the thigh, ``LeftLeg`` the shank; DAZ, Mixamo,
   Bandai, ASF and 3ds Max names are known). Unknown names get a radius from the
   bone's length. Radii never drop below one voxel, so the surface stays closed.
-* **Surface.** ``f(x) = -k log Σ_b exp(-d_b(x)/k)`` (log-sum-exp smooth minimum of the
-  capsule distances ``d_b``), sampled on a grid of ``resolution`` cells along ``H``
-  and meshed by ``skimage.measure.marching_cubes``; the mesh is closed (watertight).
-* **Weights.** Each vertex takes the signed distance to every joint's capsules;
+* **Body parts.** :func:`body_groups` splits the skeleton into the trunk (pelvis,
+  spine, neck, head) and one group per limb (the subtree above each knee and elbow).
+  Joints above the pelvis (a floor root, a static origin joint) and helper joints
+  (twist, IK, props: :data:`usdmotion.body_parts.NOT_BODY`) get no capsule. The trunk tapers to
+  :data:`TRUNK_END_RADIUS` at the neck, collars and hips; whatever the rig hangs on
+  its head joint is replaced by one head (:data:`HEAD_RADIUS`) with a small nose that
+  shows the facing direction.
+* **Surface.** Per body part, ``f(x) = -k log Σ_b exp(-d_b(x)/k)`` (log-sum-exp smooth
+  minimum of the capsule distances ``d_b``), sampled on a grid of ``resolution`` cells
+  along ``H`` and meshed by ``skimage.measure.marching_cubes``; each part is a closed
+  (watertight) surface of its own, so legs never web together.
+* **Weights.** Each vertex takes the signed distance to every joint's capsules of its part;
   ``w ∝ exp(-d/τ)`` keeps the ``INFLUENCES`` largest, normalised to 1.
 * **Skinning.** ``v_f = Σ_k w_k · (T_world_j(f) · B_j⁻¹) · v`` with ``B_j`` the rest
   (bind) world transform of joint ``j``: UsdSkel's linear blend skinning, so
@@ -37,7 +46,9 @@ import numpy as np
 
 from usdmotion.errors import UsdMotionError
 from usdmotion.kinematics import compose_transforms, fk_arrays, local_translations, rest_pose
-from usdmotion.motion import Motion
+from usdmotion.body_parts import (HEAD_HEIGHT, HEAD_HEIGHT_RANGE, HEAD_RADIUS, NO_BODY, TRUNK, TRUNK_END_RADIUS,
+                                  tree_distance, body_groups, facing, head_joint)
+from usdmotion.motion import Motion, subtree_indices
 
 #: Influences (joints) per vertex; UsdSkel's ``elementSize`` of the skinning primvars.
 INFLUENCES = 4
@@ -74,7 +85,8 @@ class Capsules:
     """Tapered capsules ``(B,)``: segment ``start → end`` with radii ``r0 → r1``.
 
     ``joint`` is the driving joint of each capsule; ``solid`` marks those that are part
-    of the surface (the others only attract skin weights).
+    of the surface (the others only attract skin weights); ``group`` is the body part
+    (:func:`body_groups`: 0 trunk and head, then one per limb) whose surface it joins.
     """
 
     start: np.ndarray
@@ -83,6 +95,11 @@ class Capsules:
     r1: np.ndarray
     joint: np.ndarray
     solid: np.ndarray
+    group: np.ndarray
+
+    def subset(self, keep: np.ndarray) -> Capsules:
+        """The capsules selected by the boolean or index array ``keep``."""
+        return Capsules(*(getattr(self, f)[keep] for f in ("start", "end", "r0", "r1", "joint", "solid", "group")))
 
 
 @dataclass(frozen=True)
@@ -165,38 +182,85 @@ def bone_capsules(motion: Motion, thickness: float = 1.0, positions: np.ndarray 
     rest = rest_world(motion)[1] if positions is None else positions
     size = body_size(motion)
     parents = motion.parents
+    groups = body_groups(motion)
     child = np.arange(1, motion.n_joints)
     parent = parents[child]
     length = np.linalg.norm(rest[child] - rest[parent], axis=1)
     moving = np.ptp(local_translations(motion)[:, child], axis=0).max(axis=1) if motion.n_frames else 0 * length
-    rigid = moving <= 0.02 * np.maximum(length, 0.05 * size)
-    bone = (length > 1e-6 * size) & rigid
+    rigid = moving <= 0.5 * np.maximum(length, 0.05 * size)  # stretching marker-driven bones stay
+    body = (groups[parent] != NO_BODY) & (groups[child] != NO_BODY)
+    bone = (length > 1e-6 * size) & rigid & body
     names = motion.joint_names
     table = [_part_radii(names[p], names[parents[p]] if p > 0 else None) for p in parent]
     default = np.clip(DEFAULT_RADIUS_PER_LENGTH * length / size, 0.012, 0.05)
     r0 = np.array([t[0] if t else d for t, d in zip(table, default)]) * size * thickness
     r1 = np.array([t[1] if t else d for t, d in zip(table, default)]) * size * thickness
+    # the trunk narrows to the neck and to the shoulder and hip joints (no dome over them)
+    from usdmotion.skeleton_names import parse_side
+
+    to_limb = np.array([groups[p] == TRUNK and (parse_side(names[c])[0] is not None
+                                                or "neck" in names[c].rsplit(":", 1)[-1].lower())
+                        for p, c in zip(parent, child)], bool)
+    r1 = np.where(to_limb, np.minimum(r1, TRUNK_END_RADIUS * size * thickness), r1)
     drives = np.zeros(motion.n_joints, bool)
     drives[parent[bone]] = True  # zero-radius parts (eyes, jaw) drive nothing visible and get no sphere
     has_children = np.zeros(motion.n_joints, bool)
     has_children[parent] = True
     rigid_child = np.zeros(motion.n_joints, bool)
-    rigid_child[parent[rigid]] = True
+    rigid_child[parent[rigid & body]] = True
     no_volume = np.array([(_part_radii(n) or (1.0,))[0] == 0 for n in names])
     # a sphere for every joint that drives no bone of positive length but moves rigid children
     # (CMU Hips, Spine1; Bandai Head with a zero-length End Site) or is a leaf without End Site
-    point = np.flatnonzero(~drives & ~no_volume & ~motion.end_sites & (rigid_child | ~has_children))
+    point = np.flatnonzero(~drives & ~no_volume & ~motion.end_sites & (rigid_child | ~has_children)
+                           & (groups != NO_BODY))
     leaf = np.ones(len(point), bool)
     point_r = _point_radii(motion, point, leaf, rest, bone, child, parent, r0, r1, size * thickness)
     keep = bone & (r0 > 0)
-    return Capsules(
+    caps = Capsules(
         start=np.concatenate([rest[parent[keep]], rest[point]]),
         end=np.concatenate([rest[child[keep]], rest[point]]),
         r0=np.concatenate([r0[keep], point_r]),
         r1=np.concatenate([r1[keep], point_r]),
         joint=np.concatenate([parent[keep], point]).astype(np.int32),
         solid=np.concatenate([np.ones(int(keep.sum()), bool), leaf & (point_r > 0)]),
+        group=np.concatenate([groups[parent[keep]], groups[point]]).astype(np.int32),
     )
+    return _with_head(motion, caps, rest, groups, size * thickness)
+
+
+def _with_head(motion: Motion, caps: Capsules, rest: np.ndarray, groups: np.ndarray, scale: float) -> Capsules:
+    """Replace whatever the rig hangs on its head joint (head-top joints, eyes, jaw, a
+    zero-length End Site's sphere) by one head: a capsule of :data:`HEAD_RADIUS` along the
+    neck's direction from the head joint to the crown, and a small nose in front of it so
+    the picture shows which way the body faces (front: ``left × up`` of the bind pose)."""
+    head = head_joint(motion, groups)
+    if head is None or motion.parents[head] < 0:
+        return caps
+    below = subtree_indices(motion.parents, head)
+    up = rest[head] - rest[motion.parents[head]]
+    if np.linalg.norm(up) < 1e-9 * scale:
+        return caps
+    up = up / np.linalg.norm(up)
+    reach = ((rest[below] - rest[head]) @ up).max()
+    lo, hi = HEAD_HEIGHT_RANGE
+    height = reach if lo * scale <= reach <= hi * scale else HEAD_HEIGHT * scale
+    radius = HEAD_RADIUS * scale
+    keep = ~np.isin(caps.joint, below)
+    start = rest[head] + up * min(radius, 0.5 * height)
+    end = rest[head] + up * max(height - radius, 0.5 * height)
+    parts = [caps.subset(keep)]
+    nose = facing(motion, rest, groups, up)
+    extra_start, extra_end, extra_r = [start], [end], [radius]
+    if nose is not None:
+        centre = 0.5 * (start + end)
+        extra_start.append(centre + nose * 0.85 * radius - up * 0.15 * radius)
+        extra_end.append(centre + nose * 0.85 * radius - up * 0.15 * radius)
+        extra_r.append(0.3 * radius)
+    k = len(extra_r)
+    parts.append(Capsules(np.array(extra_start), np.array(extra_end), np.array(extra_r), np.array(extra_r),
+                          np.full(k, head, np.int32), np.ones(k, bool), np.full(k, TRUNK, np.int32)))
+    return Capsules(*(np.concatenate([getattr(c, f) for c in parts])
+                      for f in ("start", "end", "r0", "r1", "joint", "solid", "group")))
 
 
 def _point_radii(motion, point, leaf, rest, bone, child, parent, r0, r1, scale) -> np.ndarray:
@@ -211,7 +275,17 @@ def _point_radii(motion, point, leaf, rest, bone, child, parent, r0, r1, scale) 
 
 
 def bind_pose(motion: Motion, candidates: int = 16) -> tuple[np.ndarray, np.ndarray]:
-    """``(world_rotations (J,4), world_positions (J,3))`` of the pose to build the body in.
+    """``(world_rotations (J,4), world_positions (J,3))`` of the pose to build the body in
+    (:func:`bind_frame`: the rest pose or one frame of the motion)."""
+    frame = bind_frame(motion, candidates)
+    if frame is None:
+        return rest_world(motion)
+    world_q, world_p = fk_arrays(motion.rotations[[frame]], local_translations(motion)[[frame]], motion.parents)
+    return world_q[0], world_p[0]
+
+
+def bind_frame(motion: Motion, candidates: int = 16) -> int | None:
+    """The frame to build the body in, or None for the rest pose.
 
     The rest pose, unless limbs overlap in it (Bandai's rest pose lies along +X with the
     arms through the torso): then the frame, among the rest pose and ``candidates``
@@ -221,17 +295,19 @@ def bind_pose(motion: Motion, candidates: int = 16) -> tuple[np.ndarray, np.ndar
     """
     rest_q, rest_p = rest_world(motion)
     if motion.n_frames == 0:
-        return rest_q, rest_p
+        return None
     frames = np.unique(np.linspace(0, motion.n_frames - 1, min(candidates, motion.n_frames)).astype(int))
     world_q, world_p = fk_arrays(motion.rotations[frames], local_translations(motion)[frames], motion.parents)
     poses_q = np.concatenate([rest_q[None], world_q])
     poses_p = np.concatenate([rest_p[None], world_p])
     caps = bone_capsules(motion)
-    keep = caps.solid & (np.linalg.norm(caps.end - caps.start, axis=1) > 0)
-    joint, size = caps.joint[keep], body_size(motion)
+    size = body_size(motion)
+    on_joint = np.linalg.norm(caps.end[:, None] - rest_p[None], axis=-1).min(axis=1) < 1e-6 * size
+    keep = caps.solid & (np.linalg.norm(caps.end - caps.start, axis=1) > 0) & on_joint  # bones, not the head
+    joint = caps.joint[keep]
     # the child joint of each bone: the joint at its end in the rest pose
     child = np.argmin(np.linalg.norm(caps.end[keep][:, None] - rest_p[None], axis=-1), axis=1)
-    far = _tree_distance(motion.parents)[joint[:, None], joint[None]] >= 3
+    far = tree_distance(motion.parents)[joint[:, None], joint[None]] >= 3
     clearance = 0.04 * size  # limbs closer than this get bridged by the smooth union
     t = np.linspace(0.0, 1.0, 8)
     samples = poses_p[:, joint, None] + t[None, None, :, None] * (poses_p[:, child] - poses_p[:, joint])[:, :, None]
@@ -243,21 +319,7 @@ def bind_pose(motion: Motion, candidates: int = 16) -> tuple[np.ndarray, np.ndar
         scores.append(float(np.where(far, overlap, 0.0).sum()))
     scores = np.asarray(scores)
     best = 0 if scores[0] <= scores.min() + 0.05 * size else int(np.argmin(scores))
-    return poses_q[best], poses_p[best]
-
-
-def _tree_distance(parents: np.ndarray) -> np.ndarray:
-    """Number of edges between every pair of joints ``(J, J)`` (topology only)."""
-    n = len(parents)
-    depth = np.zeros(n, int)
-    ancestors = np.eye(n, dtype=bool)
-    for j in range(1, n):  # topology, O(J²) booleans
-        depth[j] = depth[parents[j]] + 1
-        ancestors[j] = ancestors[parents[j]]
-        ancestors[j, j] = True
-    common = (ancestors[:, None, :] & ancestors[None, :, :])
-    lca_depth = np.where(common, depth[None, None, :], -1).max(axis=-1)
-    return depth[:, None] + depth[None, :] - 2 * lca_depth
+    return None if best == 0 else int(frames[best - 1])
 
 
 def capsule_distance(points: np.ndarray, caps: Capsules) -> np.ndarray:
@@ -276,7 +338,7 @@ def capsule_distance(points: np.ndarray, caps: Capsules) -> np.ndarray:
 
 def _smooth_field(points: np.ndarray, caps: Capsules, k: float, chunk: int = 65536) -> np.ndarray:
     """Log-sum-exp smooth minimum of the solid capsules' distances at ``points (N, 3)``."""
-    solid = Capsules(*(getattr(caps, f)[caps.solid] for f in ("start", "end", "r0", "r1", "joint", "solid")))
+    solid = caps.subset(caps.solid)
     out = np.empty(len(points))
     for s in range(0, len(points), chunk):  # memory: chunk × B floats at a time
         d = capsule_distance(points[s:s + chunk], solid)
@@ -303,10 +365,17 @@ def build_body(motion: Motion, resolution: int = 96, thickness: float = 1.0,
     if not caps.solid.any():
         raise UsdMotionError("the skeleton has no bone of positive length to build a body around "
                              "(render it with --style stick)")
-    vertices, faces, normals = _mesh_surface(caps, body_size(motion), resolution, blend)
-    indices, weights = skin_weights(vertices, caps, motion.parents, body_size(motion))
+    size = body_size(motion)
+    parts = []
+    for group in np.unique(caps.group[caps.solid]):  # trunk, then each limb: meshed on its own
+        own = caps.subset(caps.group == group)
+        v, f, n = _mesh_surface(own, size, resolution, blend)
+        parts.append((v, f, n, *skin_weights(v, own, motion.parents, size)))
+    offsets = np.cumsum([0] + [len(p[0]) for p in parts])
+    vertices, normals, indices, weights = (np.concatenate([p[k] for p in parts]) for k in (0, 2, 3, 4))
+    faces = np.concatenate([p[1] + o for p, o in zip(parts, offsets)]).astype(np.int32)
     return Body(vertices=vertices, faces=faces, normals=normals, joint_indices=indices,
-                joint_weights=weights, bind_transforms=compose_transforms(pose_q, pose_p), size=body_size(motion))
+                joint_weights=weights, bind_transforms=compose_transforms(pose_q, pose_p), size=size)
 
 
 def _mesh_surface(caps: Capsules, size: float, resolution: int, blend: float):
@@ -314,7 +383,7 @@ def _mesh_surface(caps: Capsules, size: float, resolution: int, blend: float):
 
     voxel = size / max(int(resolution), 8)
     caps = Capsules(caps.start, caps.end, np.maximum(caps.r0, 0.8 * voxel), np.maximum(caps.r1, 0.8 * voxel),
-                    caps.joint, caps.solid)
+                    caps.joint, caps.solid, caps.group)
     solid = caps.solid
     r = np.maximum(caps.r0, caps.r1)[solid][:, None]
     pad = 3 * voxel + blend * size
@@ -350,7 +419,7 @@ def skin_weights(vertices: np.ndarray, caps: Capsules, parents: np.ndarray, size
     four largest are kept and normalised.
     """
     n_joints = len(parents)
-    near_in_tree = _tree_distance(parents) <= 2
+    near_in_tree = tree_distance(parents) <= 2
     idx = np.zeros((len(vertices), INFLUENCES), np.int64)
     top = np.zeros((len(vertices), INFLUENCES))
     k = min(INFLUENCES, n_joints)

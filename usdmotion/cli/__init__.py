@@ -29,7 +29,7 @@ _PANELS = {
     "convert": "Convert and inspect", "info": "Convert and inspect", "positions": "Convert and inspect",
     "retarget": "Retarget", "render": "Render",
     "analyze": "Biomechanics", "check": "Biomechanics", "synth": "Biomechanics",
-    "segment": "Segment", "segment_eval": "Segment",
+    "segment": "Segment", "segment_eval": "Segment", "studio": "Studio",
 }
 
 

@@ -33,8 +33,23 @@ def render(
     grid_scale: Annotated[float, Opt(help="Grid spacing in metres.")] = 1.0,
     trace: Annotated[list[str] | None, Opt(help="Joint name or 'com' whose path to draw (repeatable).")] = None,
     overlay: Annotated[bool, Opt(help="Frame/time text overlay.")] = True,
+    angle: Annotated[list[str] | None, Opt(help="Angle to draw with its value (repeatable): knee_left, elbow_right, "
+                                                "hip_left, shoulder_right, ankle_left, wrist_right, trunk, or A,B,C "
+                                                "(at B). Values also go to OUT.angles.json.")] = None,
+    layout: Annotated[str | None, Opt(help="Several synchronised views ROWSxCOLUMNS, one --camera each: "
+                                           "--layout 2x2 --camera side,front,top,follow.")] = None,
+    panel: Annotated[str | None, Opt(help="Plot strip under the picture with a time cursor: angle:NAME and/or "
+                                          "speed:JOINT, comma-separated (angle:knee_left,speed:RightHand).")] = None,
+    strobe: Annotated[int | None, Opt(help="Stroboscope still: N poses over the range in one picture "
+                                           "(OUT is one .png/.jpg).")] = None,
+    strobe_every: Annotated[str | None, Opt(help="Stroboscope still with a pose every TIME: 0.1s, 100ms or "
+                                                 "12f.")] = None,
     compare: Annotated[Path | None, Opt(help="A second motion to compare with.")] = None,
     compare_mode: Annotated[str, Opt(help="ghost (overlaid, translucent) or side (side by side).")] = "ghost",
+    align: Annotated[str, Opt(help="How --compare's clock maps: start (same seconds), time (DTW on bone angles) "
+                                   "or frame:N,M (frame N shows with OTHER's frame M); OTHER is also moved onto "
+                                   "the main take's root and heading.")] = "start",
+    contact_shadow: Annotated[bool, Opt(help="Soft shadow disc on the ground under the body.")] = True,
     shadows: Annotated[bool, Opt(help="Shadows from the key light (about half the speed).")] = False,
     msaa: Annotated[int, Opt(help="Multisample anti-aliasing samples (0 = off, fastest).")] = 0,
     quality: Annotated[int, Opt(help="H.264 CRF (lower = better, larger).")] = 20,
@@ -49,8 +64,17 @@ def render(
     other = read.read(compare) if compare else None
     options = RenderOptions(width=width, height=height, start=start, end=end, fps=fps, speed=speed, camera=camera,
                             style=style, grid=grid, grid_scale=grid_scale, traces=tuple(trace or ()),
-                            overlay=overlay, compare_mode=compare_mode, shadows=shadows, msaa=msaa, quality=quality, body=body,
-                            labels=(source.name, compare.name if compare else ""))
+                            overlay=overlay, compare_mode=compare_mode, shadows=shadows, msaa=msaa, quality=quality,
+                            labels=(source.name, compare.name if compare else ""), angles=tuple(angle or ()),
+                            align=align, panel=panel, layout=layout, contact_shadow=contact_shadow, body=body)
+    if strobe is not None or strobe_every is not None:
+        from usdmotion.render.strobe import render_strobe
+
+        if other is not None:
+            raise ValueError("--strobe draws one take: leave out --compare")
+        shown = render_strobe(motion, output, options, strobe, strobe_every)
+        typer.echo(f"wrote {output}: {len(shown)} poses, frames {shown[0]}-{shown[-1]}, {width}x{height}")
+        return
     total = len(output_frames(motion, options)[0])
     with progress(f"rendering {output.name}", total=total, unit="frames") as update:
         result = render_motion(motion, output, options, other, progress=update)

@@ -35,7 +35,7 @@ from usdmotion.io.atomic import atomic_output
 from usdmotion.io.gltf_read import EXTRAS_KEY, up_rotation
 from usdmotion.kinematics import compose_transforms, local_translations, rest_pose
 from usdmotion.motion import Motion
-from usdmotion.rotations import quat_mul, quat_normalize, quat_rotate, wxyz_to_xyzw
+from usdmotion.rotations import quat_mul, quat_normalize, quat_rotate, quat_to_matrix, wxyz_to_xyzw
 
 GLTF_EXTENSIONS = (".glb", ".gltf")
 BODY_COLOR = (0.80, 0.62, 0.52, 1.0)  # linear RGBA, as the USD body's displayColor
@@ -68,7 +68,7 @@ def gltf_transforms(transforms: np.ndarray, meters_per_unit: float, up_axis: str
     ``C`` = scale × up rotation, ``S`` = scale (rotation turned, translation scaled and turned)."""
     r = up_rotation(up_axis)
     out = np.array(transforms, dtype=np.float64)
-    rot = compose_transforms(r, np.zeros(3))[:3, :3]
+    rot = quat_to_matrix(r)
     out[..., :3, :3] = rot @ out[..., :3, :3]
     out[..., :3, 3] = (out[..., :3, 3] * meters_per_unit) @ rot.T
     return out
@@ -96,8 +96,7 @@ class _Blob:
         self.size += len(data)
         return len(self.gltf.bufferViews) - 1
 
-    def accessor(self, view: int, array: np.ndarray, offset: int = 0, bounds: bool = False,
-                 normalized: bool | None = None) -> int:
+    def accessor(self, view: int, array: np.ndarray, offset: int = 0, bounds: bool = False) -> int:
         """Accessor of ``array`` ``(N, C)`` or ``(N,)`` stored at ``offset`` bytes in ``view``."""
         import pygltflib
 
@@ -106,7 +105,7 @@ class _Blob:
                 np.dtype(np.uint32): _UINT}[array.dtype]
         flat = array.reshape(len(array), components)
         accessor = pygltflib.Accessor(bufferView=view, byteOffset=offset, componentType=kind, count=len(array),
-                                      type=_TYPES[components], normalized=normalized)
+                                      type=_TYPES[components])
         if bounds:
             cast = float if kind == _FLOAT else int
             accessor.min = [cast(v) for v in flat.min(axis=0)]

@@ -50,6 +50,11 @@ class RenderOptions:
     body_resolution: int = 96
     body: str = "auto"  # "stage": the input's own skinned meshes, "generated": usdmotion.skin.build_body, "auto": stage if any
     labels: tuple[str, str] = ("", "")
+    angles: tuple[str, ...] = ()
+    align: str = "start"
+    panel: str | None = None
+    layout: str | None = None
+    contact_shadow: bool = True
 
 
 @dataclass(frozen=True)
@@ -63,6 +68,9 @@ class RenderPlan:
     camera: object                  # usdmotion.render.camera.CameraTrack
     panel: tuple[int, int]          # (width, height) of one view
     ground: float                   # ground height, metres (render space)
+    alignment: object = None        # usdmotion.render.compare.Alignment of the compared motion
+    cameras: tuple = ()             # --layout: one CameraTrack per view, row by row (camera = cameras[0])
+    grid_shape: tuple[int, int] = (1, 1)  # --layout rows, columns
 
 
 @dataclass
@@ -115,6 +123,13 @@ def _check_options(options: RenderOptions) -> None:
         raise UsdMotionError(f"--grid-scale must be positive, got {options.grid_scale}")
 
 
+def render_joints(motion: Motion, frames: np.ndarray) -> np.ndarray:
+    """Joint positions ``(N, J, 3)`` at ``frames`` in render space (see :mod:`usdmotion.render.space`)."""
+    from usdmotion.render.space import render_joints as joints
+
+    return joints(motion, frames)
+
+
 def plan_render(motion: Motion, options: RenderOptions, other: Motion | None = None) -> RenderPlan:
     """Frames, times and camera of a render (no GL needed; tests project joints with it)."""
     from usdmotion.render.camera import is_usd_camera, preset_track, usd_camera_track
@@ -128,28 +143,70 @@ def plan_render(motion: Motion, options: RenderOptions, other: Motion | None = N
                 motion.joint_index(name)
             except KeyError as exc:
                 raise UsdMotionError(f"--trace: {exc.args[0]}") from None
+    if other is None and options.align != "start":
+        raise UsdMotionError("--align needs --compare OTHER")
+    if options.angles:
+        from usdmotion.render.angles import parse_angle
+
+        for text in options.angles:
+            parse_angle(motion, text)
     frames, times, fps = output_frames(motion, options)
     other_frames = None
     joints = [to_render_space(_joint_positions(motion, frames), motion.meters_per_unit, motion.up_axis)]
     pad = 0.08 * body_size(motion) * motion.meters_per_unit
+    alignment = None
     if other is not None:
+        from usdmotion.render.compare import align_takes
+
         if other.n_frames == 0:
             raise UsdMotionError("no frames to render: the compared motion has no frames")
-        other_frames = np.clip(np.rint(times * other.fps).astype(np.int64), 0, other.n_frames - 1)
-        joints.append(to_render_space(_joint_positions(other, other_frames), other.meters_per_unit, other.up_axis))
+        alignment = align_takes(motion, other, frames, times, options.align, render_joints)
+        other_frames = alignment.frames
+        joints.append(render_joints(other, other_frames) @ alignment.turn.T + alignment.shift)
         pad = max(pad, 0.08 * body_size(other) * other.meters_per_unit)
     side = other is not None and options.compare_mode == "side"
-    panel = (options.width // 2 if side else options.width, options.height)
-    if is_usd_camera(options.camera):
-        camera = usd_camera_track(options.camera, times)
-    else:
-        camera = preset_track(options.camera, np.concatenate(joints, axis=1), times, panel[0] / panel[1], pad)
+    strip = 0
+    if options.panel:
+        from usdmotion.render.panel import parse_panel, strip_height
+
+        strip = strip_height(options.height, len(parse_panel(options.panel)))
+    rows, cols = parse_layout(options.layout)
+    names = [c.strip() for c in options.camera.split(",")] if "," in options.camera else [options.camera]
+    if len(names) != rows * cols:
+        raise UsdMotionError(f"--layout {rows}x{cols} needs {rows * cols} cameras (--camera side,front,top,follow), "
+                             f"got {len(names)}" if options.layout else
+                             "several cameras need --layout (e.g. --layout 2x2 --camera side,front,top,follow)")
+    if options.layout and side:
+        raise UsdMotionError("--layout and --compare-mode side cannot be combined (use the ghost)")
+    panel = (options.width // 2 if side else options.width // cols, (options.height - strip) // rows)
+    cameras = []
+    for name in names:
+        if is_usd_camera(name):
+            cameras.append(usd_camera_track(name, times))
+        else:
+            cameras.append(preset_track(name, np.concatenate(joints, axis=1), times, panel[0] / panel[1], pad))
     ground = min(0.0, float(min(j[..., 1].min() for j in joints)))
-    return RenderPlan(frames, other_frames, times, fps, camera, panel, ground)
+    return RenderPlan(frames, other_frames, times, fps, cameras[0], panel, ground, alignment,
+                      tuple(cameras) if options.layout else (), (rows, cols))
+
+
+def parse_layout(text: str | None) -> tuple[int, int]:
+    """``"2x2"`` → ``(2, 2)`` (rows, columns); ``None`` → ``(1, 1)``."""
+    if not text:
+        return 1, 1
+    try:
+        rows, cols = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        rows = cols = 0
+    if not (1 <= rows <= 3 and 1 <= cols <= 3):
+        raise UsdMotionError(f"--layout {text!r}: use ROWSxCOLUMNS from 1x1 to 3x3, e.g. 2x2")
+    return rows, cols
 
 
 def _joint_positions(motion: Motion, frames: np.ndarray) -> np.ndarray:
     return fk_arrays(motion.rotations[frames], local_translations(motion)[frames], motion.parents)[1]
+
+
 
 
 def render_motion(motion: Motion, output: str | Path, options: RenderOptions = RenderOptions(),
@@ -179,4 +236,8 @@ def render_motion(motion: Motion, output: str | Path, options: RenderOptions = R
         views.close()
         writer.close(commit=committed)
     timings["encode"] = writer.busy
+    if views.angles is not None:
+        from usdmotion.render.angles import sidecar_path, write_sidecar
+
+        write_sidecar(sidecar_path(output), plan, views.angles)
     return RenderResult(len(plan.frames), time.perf_counter() - started, timings)

@@ -175,3 +175,13 @@ def project(points: np.ndarray, pose: np.ndarray, yfov: float, width: int, heigh
     x = width / 2 + f * cam[..., 0] / -cam[..., 2]
     y = height / 2 - f * cam[..., 1] / -cam[..., 2]
     return np.stack([x, y], axis=-1)
+
+
+def project_frames(points: np.ndarray, poses: np.ndarray, yfov: float, width: int, height: int) -> np.ndarray:
+    """Pixel coordinates ``(N, P, 2)`` of points ``(N, P, 3)`` seen by cameras ``poses (N, 4, 4)``
+    (one per frame; as :func:`project`)."""
+    rotation, eye = poses[:, :3, :3], poses[:, :3, 3]
+    cam = np.einsum("npi,nij->npj", points - eye[:, None], rotation)  # world → camera axes
+    f = (height / 2) / math.tan(yfov / 2)
+    depth = np.minimum(cam[..., 2], -1e-9)
+    return np.stack([width / 2 + f * cam[..., 0] / -depth, height / 2 - f * cam[..., 1] / -depth], axis=-1)

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from usdmotion.render.gl import DynamicMesh, import_pyrender
+from usdmotion.render.space import to_render_space  # noqa: F401  (re-exported: scene content is in render space)
 
 #: Colours (linear RGBA) of the scene's parts.
 COLORS = {
@@ -34,12 +35,6 @@ def material(color, double_sided: bool = False):
                                               doubleSided=double_sided)
 
 
-def to_render_space(points: np.ndarray, meters_per_unit: float, up_axis: str) -> np.ndarray:
-    """File coordinates ``(..., 3)`` → metres, Y up (Z-up: ``(x, y, z) → (x, z, -y)``)."""
-    points = np.asarray(points, dtype=np.float64) * meters_per_unit
-    if up_axis == "Z":
-        points = np.stack([points[..., 0], points[..., 2], -points[..., 1]], axis=-1)
-    return points
 
 
 # ------------------------------------------------------------------ stick figure
@@ -66,19 +61,21 @@ def _prism(sides: int = 8):
 class StickFigure:
     """Bones as prisms and joints as spheres: one mesh, re-placed every frame."""
 
-    def __init__(self, parents: np.ndarray, bones: np.ndarray, radius: float, bone_color, joint_color):
+    def __init__(self, parents: np.ndarray, bones: np.ndarray, radius: float, bone_color, joint_color,
+                 shown: np.ndarray | None = None):
         self.parents = parents
         self.bones = bones  # child joint indices of drawn bones
+        self.shown = np.arange(len(parents)) if shown is None else np.asarray(shown)  # joints drawn as spheres
         self.radius = radius
         self.prism_v, self.prism_n, prism_f = _prism()
         self.sphere_v, sphere_f = _icosphere()
-        n_b, n_j = len(bones), len(parents)
+        n_b, n_j = len(bones), len(self.shown)
         pv, sv = len(self.prism_v), len(self.sphere_v)
         faces = [prism_f[None] + pv * np.arange(n_b)[:, None, None],
                  sphere_f[None] + n_b * pv + sv * np.arange(n_j)[:, None, None]]
         self.faces = np.concatenate([f.reshape(-1, 3) for f in faces])
         colors = np.concatenate([np.tile(bone_color, (n_b * pv, 1)), np.tile(joint_color, (n_j * sv, 1))])
-        positions, normals = self.geometry(np.zeros((n_j, 3)) + np.arange(n_j)[:, None] * 0.01)
+        positions, normals = self.geometry(np.zeros((len(parents), 3)) + np.arange(len(parents))[:, None] * 0.01)
         self.dynamic = DynamicMesh(positions, normals, self.faces, material((1.0, 1.0, 1.0, 1.0)),
                                    colors=colors.astype(np.float32))
 
@@ -97,7 +94,7 @@ class StickFigure:
                           length], axis=-1)
         bone_v = np.einsum("bij,bvj->bvi", frame, self.prism_v[None] * scale[:, None]) + a[:, None]
         bone_n = np.einsum("bij,vj->bvi", frame, self.prism_n)
-        joint_v = joints[:, None] + self.radius * self.sphere_v[None]
+        joint_v = joints[self.shown][:, None] + self.radius * self.sphere_v[None]
         joint_n = np.broadcast_to(self.sphere_v, joint_v.shape)
         return (np.concatenate([bone_v.reshape(-1, 3), joint_v.reshape(-1, 3)]),
                 np.concatenate([bone_n.reshape(-1, 3), joint_n.reshape(-1, 3)]))

@@ -10,9 +10,11 @@ from usdmotion.errors import UsdMotionError
 from usdmotion.kinematics import fk_arrays, local_translations
 from usdmotion.motion import Motion
 from usdmotion.render.gl import DynamicMesh, import_pyrender, offscreen_renderer, render_rgb
+from usdmotion.render.compare import clock_text
 from usdmotion.render.overlay import draw_text
 from usdmotion.render.scene import (COLORS, StickFigure, add_lights, grid_mesh, material, to_render_space,
                                     tube_mesh)
+from usdmotion.body_parts import NO_BODY, body_groups
 from usdmotion.skin import body_size, build_body, centre_of_mass, lbs, skinning_matrices
 
 _UP_Z = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
@@ -38,10 +40,13 @@ class Actor:
     """One motion's body and/or stick figure, skinned a chunk of frames at a time."""
 
     def __init__(self, motion: Motion, frames: np.ndarray, style: str, resolution: int, ghost: bool,
-                 body: str = "auto"):
+                 alignment=None, body: str = "auto"):
         self.motion, self.frames = motion, frames
         self.local_t = local_translations(motion)
         self.turn = (_UP_Z if motion.up_axis == "Z" else np.eye(3)) * 1.0
+        self.shift = np.zeros(3)
+        if alignment is not None:  # the compared take, turned and moved onto the main one
+            self.turn, self.shift = alignment.turn @ self.turn, alignment.shift
         self.scale = motion.meters_per_unit
         self.body = self.stick = None
         self.nodes = []
@@ -60,14 +65,17 @@ class Actor:
             self.nodes.append(self.body_mesh.mesh)
         if style in ("stick", "both"):
             rest_len = np.linalg.norm(motion.offsets[1:], axis=1)
-            bones = np.flatnonzero(rest_len > 1e-6 * body_size(motion)) + 1
+            # no stick from a floor root or origin joint to the pelvis, none to or from a helper joint
+            groups = body_groups(motion)
+            body = groups != NO_BODY
+            bones = np.flatnonzero((rest_len > 1e-6 * body_size(motion)) & body[motion.parents[1:]] & body[1:]) + 1
             joint_color = COLORS["ghost_stick"] if ghost else COLORS["joint"]
             self.stick = StickFigure(motion.parents, bones, 0.012 * body_size(motion) * self.scale,
-                                     np.float32(COLORS["bone"]), np.float32(joint_color))
+                                     np.float32(COLORS["bone"]), np.float32(joint_color), np.flatnonzero(body))
             self.nodes.append(self.stick.dynamic.mesh)
 
     def _space(self, points: np.ndarray) -> np.ndarray:
-        return (points * self.scale) @ self.turn.T
+        return (points * self.scale) @ self.turn.T + self.shift
 
     def prepare(self, index: np.ndarray) -> None:
         """Skin the output frames ``index`` (one chunk) at once."""
@@ -98,15 +106,65 @@ class Views:
                              body=options.body)]
         if other is not None:
             self.actors.append(Actor(other, plan.other_frames, options.style, options.body_resolution,
-                                     ghost=not self.side))
+                                     ghost=not self.side, alignment=plan.alignment))
         self.labels = options.labels
+        self.other_fps = other.fps if other is not None else None
         scenes = [self._scene(pyrender) for _ in range(2 if self.side else 1)]
         for i, actor in enumerate(self.actors):
             for mesh in actor.nodes:
                 scenes[i if self.side else 0].add(mesh)
         self.scenes = scenes
         self._add_static(motion, other)
+        self.angles = self._angles(motion) if options.angles else None
+        self.shadow = self._contact_shadow() if options.contact_shadow else None
+        self.strip = self._plot_strip(motion) if options.panel else None
+        self.view_nodes = self._view_cameras(pyrender) if plan.cameras else []
         self.renderer = offscreen_renderer(*plan.panel, msaa=options.msaa)
+
+    def _contact_shadow(self):
+        """The :class:`~usdmotion.render.shadow.ContactShadow` under the main body (None: no body)."""
+        from usdmotion.render.shadow import ContactShadow
+
+        main = self.actors[0]
+        if main.body is None:
+            return None
+        size = main.body.size * main.scale
+        shadow = ContactShadow(0.3 * size, self.plan.ground, size)
+        self.scenes[0].add(shadow.dynamic.mesh)
+        return shadow
+
+    def _plot_strip(self, motion: Motion):
+        """The ``--panel`` :class:`~usdmotion.render.panel.PlotStrip`: curves at every source frame."""
+        from usdmotion.render.panel import PlotStrip, panel_series, parse_panel, strip_height
+
+        plan, options = self.plan, self.options
+        items = parse_panel(options.panel)
+        every = np.arange(plan.frames.min(), plan.frames.max() + 1)
+        return PlotStrip(panel_series(motion, items, every), every / motion.fps, options.width,
+                         strip_height(options.height, len(items)), cursor_times=plan.frames / motion.fps)
+
+    def _view_cameras(self, pyrender) -> list:
+        """``--layout``: one camera node per view in the one scene."""
+        nodes = []
+        for cam in self.plan.cameras:
+            camera = pyrender.PerspectiveCamera(yfov=cam.yfov, aspectRatio=self.plan.panel[0] / self.plan.panel[1],
+                                                znear=cam.znear, zfar=cam.zfar)
+            nodes.append(self.scenes[0].add(camera, pose=cam.poses[0]))
+        return nodes
+
+    def _angles(self, motion: Motion):
+        """The :class:`~usdmotion.render.angles.AngleOverlay` of ``--angle`` on the main view."""
+        from usdmotion.render.angles import AngleOverlay, angle_values, parse_angle
+        from usdmotion.render.camera import project_frames
+
+        plan = self.plan
+        specs = [parse_angle(motion, text) for text in self.options.angles]
+        joints = to_render_space(fk_arrays(motion.rotations[plan.frames], self.actors[0].local_t[plan.frames],
+                                           motion.parents)[1], motion.meters_per_unit, motion.up_axis)
+        values = angle_values(specs, joints, np.array([0.0, 1.0, 0.0]))  # bends: invariant to units and axes
+        index = np.array([s.joints for s in specs])  # (K, 3); -1 (trunk's third) is replaced when drawn
+        points = project_frames(joints[:, index.reshape(-1)], plan.camera.poses, plan.camera.yfov, *plan.panel)
+        return AngleOverlay(specs, values, points.reshape(len(plan.frames), len(specs), 3, 2), plan.panel[1])
 
     def _scene(self, pyrender):
         scene = pyrender.Scene(bg_color=np.array(COLORS["background"]), ambient_light=np.full(3, 0.45))
@@ -132,7 +190,8 @@ class Views:
             margin = max(2.0, 2 * options.grid_scale)
             lo = joints.reshape(-1, 3).min(axis=0) - margin
             hi = joints.reshape(-1, 3).max(axis=0) + margin
-            static += grid_mesh(lo, hi, plan.ground, options.grid_scale, max(0.0025 * distance, 0.004),
+            pixel = distance * 2 * np.tan(plan.camera.yfov / 2) / plan.panel[1]  # metres per pixel at the body
+            static += grid_mesh(lo, hi, plan.ground, options.grid_scale, max(0.0025 * distance, 1.4 * pixel, 0.004),
                               solid=options.shadows)  # a floor to receive the shadows
         for k, name in enumerate(options.traces):
             path = self._trace_path(motion, name, joints)
@@ -170,31 +229,65 @@ class Views:
                 self.renderer._platform.make_current()
                 for actor in self.actors:
                     actor.update(k)
+                if self.shadow is not None:
+                    self.shadow.update(self.actors[0].joints[k])
                 images = []
-                for scene in self.scenes:
-                    scene.set_pose(scene.camera_node, plan.camera.poses[i])
-                    images.append(render_rgb(self.renderer, scene, options.shadows))
+                if self.view_nodes:
+                    scene = self.scenes[0]
+                    for node, cam in zip(self.view_nodes, plan.cameras):
+                        scene.main_camera_node = node
+                        scene.set_pose(node, cam.poses[i])
+                        images.append(render_rgb(self.renderer, scene, options.shadows))
+                else:
+                    for scene in self.scenes:
+                        scene.set_pose(scene.camera_node, plan.camera.poses[i])
+                        images.append(render_rgb(self.renderer, scene, options.shadows))
+                if self.angles is not None:
+                    self.angles.draw(images[0], i)
                 if options.overlay:
                     self._overlay(images, i)
-                image = images[0] if len(images) == 1 else np.ascontiguousarray(np.hstack(images))
+                image = self._compose(images, i)
                 draw += time.perf_counter() - t0
                 emit(image, int(i))
                 if progress is not None:
                     progress(int(i) + 1, n, "rendering")
         timings.update(skin=skin, render=draw)
 
+    def _compose(self, images: list[np.ndarray], i: int) -> np.ndarray:
+        """The output frame: views side by side (or in the layout's grid, padded to the
+        output size), the plot strip under them."""
+        rows, cols = self.plan.grid_shape
+        if self.view_nodes:
+            block = np.vstack([np.hstack(images[r * cols:(r + 1) * cols]) for r in range(rows)])
+        else:
+            block = images[0] if len(images) == 1 else np.hstack(images)
+        parts = [block] if self.strip is None else [block, None]
+        height = self.options.height - (0 if self.strip is None else self.strip.image.shape[0])
+        if block.shape[:2] != (height, self.options.width):  # panels rounded down: pad with the background
+            pad = np.empty((height, self.options.width, 3), np.uint8)
+            pad[...] = np.asarray(block[0, 0])
+            pad[:block.shape[0], :block.shape[1]] = block
+            parts[0] = pad
+        if self.strip is not None:
+            parts[1] = self.strip.frame(i)
+        return np.ascontiguousarray(parts[0] if len(parts) == 1 else np.vstack(parts))
+
     def _overlay(self, images: list[np.ndarray], i: int) -> None:
         plan = self.plan
+        if self.view_nodes:
+            names = [c.strip() for c in self.options.camera.split(",")]
+            for name, image in zip(names, images):
+                draw_text(image, [f"{name}   frame {plan.frames[i]}   {plan.times[i]:7.3f} s"])
+            return
         main = f"frame {plan.frames[i]}   {plan.times[i]:7.3f} s"
         names = [label for label in self.labels]
         if self.side:
             draw_text(images[0], [names[0], main] if names[0] else [main])
-            other = f"frame {plan.other_frames[i]}"
-            draw_text(images[1], [names[1], other] if names[1] else [other])
+            draw_text(images[1], [clock_text(plan.alignment, i, self.other_fps, names[1])])
             return
         lines = [names[0], main] if names[0] else [main]
         if plan.other_frames is not None:
-            lines.append(f"ghost: {names[1] or 'compare'}  frame {plan.other_frames[i]}")
+            lines.append("ghost " + clock_text(plan.alignment, i, self.other_fps, names[1]))
         draw_text(images[0], lines)
 
     def close(self) -> None:

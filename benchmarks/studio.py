@@ -1,0 +1,167 @@
+"""Studio speed: opening a 5,000-frame, 31-joint take to its first drawn frame, and playback
+in headless Chromium (software WebGL, SwiftShader) at 1280×720; GLB size and the server's
+time per request.
+
+    PYTHONPATH=$PWD .venv/bin/python benchmarks/studio.py [--frames 5000] [--play 6] [--library 3000]
+
+Goals (issue 13): ≤ 1.0 s from opening the take to its first drawn frame; playback that keeps
+real time at 1280×720 (frames are dropped, never slowed: the take's clock advances at the
+capture rate whatever the drawing rate). The take is the bundled CMU walk (31 joints, 120 fps)
+cycled by the library's ``cycle`` to ``--frames`` frames. "First drawn frame" is the first
+canvas render after the click with the take in it (the stick figure from the server's FK);
+the skinned body (GLB) follows and is timed separately, cold (built) and warm (cached in the
+output folder). Also: how soon a library of ``--library`` files is listed and filled in.
+Prints a table; writes ``benchmarks/results/studio.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import sys
+import tempfile
+import time
+import urllib.request
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "tests"))
+
+CSS = "#view{width:1280px;height:720px;flex:none}"
+
+
+def make_take(folder: Path, frames: int) -> Path:
+    from usdmotion.io import read_motion, write_motion
+    from usdmotion.ops.edit.cycle import cycle
+
+    walk = read_motion(ROOT / "usdmotion" / "data" / "cmu_12_01_walk.bvh", units="asf")
+    period = 300 - 30  # frames per loop: [0, 300) with a 30-frame cross-fade
+    long = cycle(walk, 0, 300, 30, loops=-(-frames // period))
+    long = long.sliced(0, frames)
+    path = folder / "lib" / f"walk_{frames}.bvh"
+    path.parent.mkdir(parents=True)
+    write_motion(long, path)
+    return path
+
+
+def server_timing(base: str, target: str) -> tuple[float, int, float]:
+    """(server ms from the Server-Timing header, bytes, client ms) of one GET."""
+    t = time.perf_counter()
+    with urllib.request.urlopen(base + target, timeout=300) as r:
+        body = r.read()
+        header = r.headers.get("server-timing", "app;dur=nan")
+    return float(header.split("dur=")[1]), len(body), 1e3 * (time.perf_counter() - t)
+
+
+def open_and_play(browser, base: str, take_id: str, play_s: float, by_url: bool = False) -> dict:
+    """Open the take by clicking it in the library (timed from the click), or by its URL on a
+    fresh page (timed from navigation start: page, scripts, reading the file, FK)."""
+    page = browser.new_page(viewport={"width": 1800, "height": 1200})
+    if by_url:
+        page.goto(f"{base}/?take={take_id}")
+        t_click = 0.0
+        page.wait_for_selector('body[data-loaded="1"]', state="attached", timeout=300_000)
+        page.add_style_tag(content=CSS)
+    else:
+        page.goto(base + "/")
+        page.wait_for_selector('body[data-loaded="1"]', state="attached", timeout=120_000)
+        page.add_style_tag(content=CSS)
+        row = page.locator(f'#takes tr[data-id="{take_id}"]')
+        page.evaluate("() => { window.studio.player.firstDrawnAt = null; }")
+        t_click = page.evaluate("() => performance.now()")
+        row.click()
+    page.wait_for_function("window.studio.player.firstDrawnAt !== null", timeout=120_000)
+    page.wait_for_function("window.studio.player.bodyDrawnAt !== null", timeout=300_000)
+    first, body = page.evaluate("[window.studio.player.firstDrawnAt, window.studio.player.bodyDrawnAt]")
+    size = page.evaluate("[window.studio.player.canvas.width, window.studio.player.canvas.height]")
+    page.keyboard.press("Space")
+    page.wait_for_timeout(play_s * 1000)
+    page.keyboard.press("Space")
+    log = page.evaluate("window.studio.player.playLog")  # [ms, frame] of every frame drawn while playing
+    page.close()
+    (t0, f0), (t1, f1) = log[0], log[-1]
+    seconds = (t1 - t0) / 1000
+    return {"first_frame_s": (first - t_click) / 1000, "body_s": (body - t_click) / 1000, "canvas": size,
+            "take_frames_per_s": (f1 - f0) / seconds, "drawn_per_s": (len(log) - 1) / seconds}
+
+
+def library_fill(browser, n_files: int, tmp: Path) -> dict:
+    """A library of ``n_files`` small (malformed) BVH files: seconds from navigation until the
+    list is shown, and until every file's metadata (here: its error) is filled in."""
+    from studio_support import running_studio
+
+    lib = tmp / "many"
+    for i in range(n_files):
+        folder = lib / f"athlete{i % 30:02d}"
+        folder.mkdir(parents=True, exist_ok=True)
+        (folder / f"take{i:05d}.bvh").write_text("HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0\n}\n")
+    with running_studio([lib], out=tmp / "out_many") as base:
+        page = browser.new_page()
+        t = time.perf_counter()
+        page.goto(base + "/")
+        page.wait_for_function(f"document.querySelectorAll('#takes tbody tr').length >= {n_files}")
+        shown = time.perf_counter() - t
+        page.wait_for_function("!document.querySelector('#library-status').textContent.includes('reading')",
+                               timeout=600_000)
+        filled = time.perf_counter() - t
+        page.close()
+    return {"files": n_files, "list_shown_s": shown, "filled_s": filled}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--frames", type=int, default=5000)
+    ap.add_argument("--play", type=float, default=6.0)
+    ap.add_argument("--library", type=int, default=3000, help="files in the library-listing case")
+    args = ap.parse_args()
+    from playwright.sync_api import sync_playwright
+
+    from studio_support import running_studio
+    from test_studio_browser import ARGS, CHROMIUM
+
+    tmp = Path(tempfile.mkdtemp(prefix="studio_bench_"))
+    take = make_take(tmp, args.frames)
+    take_id = f"0/{take.name}"
+    unread = take.with_name(f"unread_{take.name}")  # opened first by URL: nothing read or cached yet
+    unread.write_bytes(take.read_bytes())
+    rows = {}
+    with running_studio([take.parent], units="asf", out=tmp / "out") as base, sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
+        try:
+            rows["url"] = open_and_play(browser, base, f"0/{unread.name}", args.play, by_url=True)
+            rows["cold"] = open_and_play(browser, base, take_id, args.play)  # server reads, FK, builds the body
+            rows["warm"] = open_and_play(browser, base, take_id, args.play)  # server caches, GLB from out/cache
+            library = library_fill(browser, args.library, tmp)
+        finally:
+            browser.close()
+        requests = {name: server_timing(base, target) for name, target in [
+            ("takes", "/api/takes"), ("meta", f"/api/meta?id={take_id}"), ("skeleton", f"/api/skeleton?take={take_id}"),
+            ("positions", f"/api/positions?take={take_id}"), ("com", f"/api/com?take={take_id}"),
+            ("series", f"/api/series?take={take_id}&joints=LeftLeg,RightLeg&q=bend,speed,com_height"),
+            ("glb", f"/api/glb?take={take_id}")]}
+    print(f"studio: {args.frames}-frame, 31-joint take at 120 fps; headless Chromium {platform.machine()}, "
+          "SwiftShader WebGL, canvas " + "x".join(map(str, rows["cold"]["canvas"])))
+    print("url: fresh page on the take's URL, timed from navigation (reads the file); cold: click in the "
+          "library (file read while listing), body built; warm: click again, body from the cache")
+    print(f"{'open':<6}{'first frame s':>15}{'goal ratio':>12}{'body s':>9}{'take frames/s':>15}{'drawn/s':>9}")
+    for name, r in rows.items():
+        print(f"{name:<6}{r['first_frame_s']:>15.3f}{r['first_frame_s'] / 1.0:>12.2f}{r['body_s']:>9.2f}"
+              f"{r['take_frames_per_s']:>15.1f}{r['drawn_per_s']:>9.1f}")
+    print(f"{'request (warm)':<16}{'server ms':>10}{'bytes':>12}{'client ms':>11}")
+    for name, (server_ms, size, client_ms) in requests.items():
+        print(f"{name:<16}{server_ms:>10.1f}{size:>12,}{client_ms:>11.1f}")
+    print(f"library of {library['files']:,} files: list shown {library['list_shown_s']:.2f} s after navigation, "
+          f"all metadata in {library['filled_s']:.2f} s")
+    out = ROOT / "benchmarks" / "results" / "studio.json"
+    out.parent.mkdir(exist_ok=True)
+    out.write_text(json.dumps({"frames": args.frames, "open": rows, "goal_first_frame_s": 1.0,
+                               "requests_warm": {k: {"server_ms": v[0], "bytes": v[1], "client_ms": v[2]}
+                                                 for k, v in requests.items()},
+                               "glb_bytes": requests["glb"][1], "library": library}, indent=2))
+    print(f"wrote {out.relative_to(ROOT)}")
+
+
+if __name__ == "__main__":
+    main()

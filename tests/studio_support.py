@@ -1,0 +1,76 @@
+"""A temporary studio library and a real uvicorn server on a free port (for the studio tests)."""
+
+from __future__ import annotations
+
+import contextlib
+import socket
+import threading
+import time
+from pathlib import Path
+
+from usdmotion.io import read_motion, write_motion
+
+REPO = Path(__file__).resolve().parents[1]
+WALK = REPO / "usdmotion" / "data" / "cmu_12_01_walk.bvh"
+#: The second take is the walk from this frame on, turned and moved: DTW must find the
+#: shift and the spatial alignment must undo the turn.
+SHIFT = 60
+TURN_DEG = 90.0
+MOVE = (40.0, 0.0, -25.0)  # asf units
+
+
+def make_library(folder: Path) -> Path:
+    """``folder/lib`` with the walk, a second take (walk[SHIFT:] turned and moved, USD),
+    one malformed BVH, a sub-folder and a symlink that points out of the library."""
+    from usdmotion.ops.edit.trajectory import reorient
+
+    lib = folder / "lib"
+    (lib / "session2").mkdir(parents=True)
+    walk = read_motion(WALK, units="asf")
+    write_motion(walk, lib / "walk.bvh")
+    second = reorient(walk.sliced(SHIFT, None), rotate=TURN_DEG, translate=MOVE)
+    write_motion(second, lib / "session2" / "walk_turned.usda")
+    (lib / "broken.bvh").write_text("HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0\n}\n")
+    outside = folder / "outside.bvh"
+    outside.write_bytes(WALK.read_bytes())
+    (lib / "escape.bvh").symlink_to(outside)
+    return lib
+
+
+@contextlib.contextmanager
+def running_studio(roots: list[Path], units: str | None = "asf", out: Path | None = None):
+    """Serve the studio on 127.0.0.1 and a free port; yields the base URL; always stops it."""
+    import uvicorn
+
+    from usdmotion.studio.app import create_app
+    app = create_app(roots, {"units": units}, out)
+    sock = socket.socket()
+    sock.bind(("127.0.0.1", 0))
+    server = uvicorn.Server(uvicorn.Config(app, log_level="warning"))
+    thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, daemon=True)
+    thread.start()
+    deadline = time.monotonic() + 20
+    while not server.started and time.monotonic() < deadline:
+        time.sleep(0.02)
+    try:
+        yield f"http://127.0.0.1:{sock.getsockname()[1]}"
+    finally:
+        server.should_exit = True
+        thread.join(10)
+        sock.close()
+
+
+def raw_get(base: str, target: str) -> tuple[int, bytes]:
+    """GET ``target`` exactly as written (no client-side normalisation of ``..``)."""
+    import http.client
+    from urllib.parse import urlsplit
+
+    host = urlsplit(base)
+    conn = http.client.HTTPConnection(host.hostname, host.port, timeout=60)
+    try:
+        conn.putrequest("GET", target, skip_accept_encoding=True)
+        conn.endheaders()
+        response = conn.getresponse()
+        return response.status, response.read()
+    finally:
+        conn.close()

@@ -1,0 +1,188 @@
+"""Studio server: library listing and errors, safety (roots only, bounded requests), and that
+every number it serves is the library's (FK, analysis, DTW alignment, spatial alignment)."""
+
+from __future__ import annotations
+
+import json
+from urllib.parse import quote
+
+import numpy as np
+import pytest
+
+from studio_support import MOVE, SHIFT, TURN_DEG, WALK, make_library, raw_get, running_studio
+from usdmotion.io import read_motion
+from usdmotion.kinematics import joint_positions
+
+
+@pytest.fixture(scope="module")
+def studio(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("studio")
+    lib = make_library(folder)
+    with running_studio([lib], out=folder / "out") as base:
+        yield base, lib
+
+
+def get_json(base, target):
+    status, body = raw_get(base, target)
+    return status, json.loads(body) if body else None
+
+
+def test_library_lists_takes_and_the_malformed_file_with_its_error(studio):
+    base, lib = studio
+    status, listing = get_json(base, "/api/takes")
+    assert status == 200
+    ids = [t["id"] for t in listing["takes"]]
+    assert ids == ["0/broken.bvh", "0/session2/walk_turned.usda", "0/walk.bvh"]  # the symlink out is not listed
+    _, meta = get_json(base, "/api/meta?" + "&".join(f"id={quote(i)}" for i in ids))
+    walk = read_motion(WALK, units="asf")
+    assert meta["meta"]["0/walk.bvh"] == {"joints": 31, "frames": walk.n_frames, "fps": walk.fps,
+                                          "duration_s": pytest.approx(walk.duration), "rig": "cmu_cgspeed",
+                                          "height_m": pytest.approx(1.4258, abs=1e-3)}
+    assert meta["meta"]["0/session2/walk_turned.usda"]["frames"] == walk.n_frames - SHIFT
+    assert meta["meta"]["0/broken.bvh"] == {"error": "broken.bvh:4:3: OFFSET has 2 values, expected 3"}
+    # the server keeps answering after the bad file
+    assert get_json(base, "/api/skeleton?take=0/broken.bvh") == (422, {"error": meta["meta"]["0/broken.bvh"]["error"]})
+    assert get_json(base, "/api/takes")[0] == 200
+
+
+@pytest.mark.parametrize("target", [
+    "/api/skeleton?take=0/../../outside.bvh", "/api/skeleton?take=0/escape.bvh",
+    "/api/skeleton?take=/etc/passwd", "/api/skeleton?take=0//etc/passwd", "/api/skeleton?take=1/walk.bvh",
+    "/api/positions?take=0/%2e%2e/outside.bvh", "/api/glb?take=0/./walk.bvh", "/api/skeleton?take=0/nothing.bvh",
+    "/app/../../../pyproject.toml", "/vendor/three/../../package.json", "/app/%2e%2e/app.py", "/etc/passwd",
+    "/app/node_modules/three/package.json", "/app/package-lock.json",
+    "/api/compare?a=0/walk.bvh&b=0/escape.bvh",
+])
+def test_outside_the_roots_is_not_found(studio, target):
+    status, _ = raw_get(studio[0], target)
+    assert status == 404
+
+
+def test_requests_are_read_only_and_bounded(studio):
+    import http.client
+    from urllib.parse import urlsplit
+
+    url = urlsplit(studio[0])
+    conn = http.client.HTTPConnection(url.hostname, url.port, timeout=30)
+    conn.request("POST", "/api/takes", body=b"x" * 10)
+    assert conn.getresponse().status == 405
+    conn.close()
+    many = "&".join(f"id=0/t{i}.bvh" for i in range(201))
+    assert raw_get(studio[0], "/api/meta?" + many)[0] == 413
+
+
+def test_positions_are_the_library_fk_in_metres(studio):
+    base, lib = studio
+    status, body = raw_get(base, "/api/positions?take=0/walk.bvh")
+    walk = read_motion(lib / "walk.bvh", units="asf")
+    served = np.frombuffer(body, dtype=np.float32).reshape(walk.n_frames, walk.n_joints, 3)
+    np.testing.assert_allclose(served, joint_positions(walk) * walk.meters_per_unit, atol=1e-5)
+
+
+def test_series_are_the_analysis_module(studio):
+    from usdmotion.anthropometry import body_model
+    from usdmotion.ops.analyse import analyse
+
+    base, lib = studio
+    _, s = get_json(base, "/api/series?take=0/walk.bvh&joints=LeftLeg,RightUpLeg&q=bend,speed,com_height")
+    walk = read_motion(lib / "walk.bvh", units="asf")
+    kin = analyse(walk, body=body_model(walk))
+    j = walk.joint_index("LeftLeg")
+    by_label = {x["label"]: np.array(x["values"], dtype=float) for x in s["series"]}
+    assert [x["unit"] for x in s["series"]] == ["deg", "deg", "m/s", "m/s", "m"]
+    np.testing.assert_allclose(by_label["LeftLeg joint angle"], kin.bend[:, j], atol=1e-4)
+    np.testing.assert_allclose(by_label["LeftLeg joint speed"], np.linalg.norm(kin.velocities[:, j], axis=1), atol=1e-4)
+    np.testing.assert_allclose(by_label["centre-of-mass height"], kin.com[:, 1], atol=1e-4)
+    assert 0.7 < np.nanmean(by_label["centre-of-mass height"]) < 1.0  # metres, a walking adult
+    assert get_json(base, "/api/series?take=0/walk.bvh&joints=Nope")[0] == 400
+
+
+def test_compare_finds_the_shift_in_time_and_undoes_the_turn(studio):
+    base, lib = studio
+    _, answer = get_json(base, "/api/compare?a=0/session2/walk_turned.usda&b=0/walk.bvh&mode=dtw&frame=100")
+    frame_map = np.array(answer["map"])
+    inner = frame_map[20:-20]  # DTW's ends are open
+    assert np.median(np.abs(inner - (np.arange(len(frame_map)) + SHIFT)[20:-20])) <= 1.0
+    # spatial: the walk moved by the alignment matrix lands on the turned take, all joints, at the aligned frame
+    a = read_motion(lib / "session2" / "walk_turned.usda")
+    b = read_motion(lib / "walk.bvh", units="asf")
+    m = np.array(answer["align"])
+    fb = int(round(frame_map[100]))
+    pb = joint_positions(b)[fb] * b.meters_per_unit
+    pa = joint_positions(a)[100] * a.meters_per_unit
+    moved = pb @ m[:3, :3].T + m[:3, 3]
+    # heading is smoothed over 0.5 s, so allow a few degrees and centimetres
+    assert np.abs(moved - pa)[:, [0, 2]].max() < 0.06
+    turn = np.degrees(np.arctan2(m[0, 2], m[0, 0]))
+    assert abs(abs(turn) - TURN_DEG) < 5.0
+    _, manual = get_json(base, "/api/compare?a=0/walk.bvh&b=0/session2/walk_turned.usda&mode=offset&offset=0.5")
+    np.testing.assert_allclose(manual["map"][60:70], np.arange(60, 70) - 0.5 * 120, atol=1e-6)
+    assert MOVE  # the move is part of the fixture; the alignment absorbs it
+
+
+def test_glb_is_the_writers_body_and_is_cached_only_in_the_output_folder(studio):
+    from usdmotion.io.gltf import glb_bytes
+
+    base, lib = studio
+    before = sorted(p for p in lib.parent.rglob("*") if p.is_file())
+    status, first = raw_get(base, "/api/glb?take=0/walk.bvh")
+    assert status == 200 and first[:4] == b"glTF"
+    assert first == glb_bytes(read_motion(lib / "walk.bvh", units="asf"), mesh=True)
+    written = sorted(set(p for p in lib.parent.rglob("*") if p.is_file()) - set(before))
+    assert [p.parent.relative_to(lib.parent).as_posix() for p in written] == ["out/cache/glb"]
+    assert written[0].read_bytes() == first
+
+
+def test_a_huge_file_is_listed_with_an_error_and_not_read(studio, monkeypatch):
+    import usdmotion.studio.library as library
+
+    base, lib = studio
+    (lib / "huge").mkdir()
+    (lib / "huge" / "long.bvh").write_bytes(WALK.read_bytes())
+    monkeypatch.setattr(library, "MAX_FILE_BYTES", 100_000)
+    try:
+        _, meta = get_json(base, "/api/meta?id=0/huge/long.bvh")
+        size = WALK.stat().st_size
+        assert meta["meta"]["0/huge/long.bvh"] == {
+            "error": f"huge/long.bvh: file is {size:,} bytes; the studio reads files up to 100,000 bytes"}
+        assert get_json(base, "/api/positions?take=0/huge/long.bvh")[0] == 422
+        assert get_json(base, "/api/takes")[0] == 200
+    finally:
+        (lib / "huge" / "long.bvh").unlink()
+        (lib / "huge").rmdir()
+
+
+def test_listing_thousands_of_files_reads_none_of_them(tmp_path):
+    from usdmotion.studio.library import Library
+
+    tiny = WALK.read_bytes()[:2000]  # never parsed: listing must not read files
+    for i in range(2000):
+        folder = tmp_path / f"athlete{i % 20:02d}"
+        folder.mkdir(exist_ok=True)
+        (folder / f"take{i:04d}.bvh").write_bytes(tiny)
+    read = []
+    library = Library([tmp_path], read=lambda entry: read.append(entry))
+    entries = library.scan()
+    assert len(entries) == 2000 and entries[0].id == "0/athlete00/take0000.bvh"
+    assert read == []  # metadata is read only when asked for, one take at a time
+    assert library.resolve("0/athlete07/take0007.bvh").path == tmp_path / "athlete07" / "take0007.bvh"
+
+
+def test_a_z_up_take_is_turned_to_the_viewers_y_up_like_its_glb(tmp_path):
+    import dataclasses
+
+    from pygltflib import GLTF2
+
+    from usdmotion.io.gltf import glb_bytes
+    from usdmotion.studio.takes import view_positions
+
+    walk = read_motion(WALK, units="asf")
+    z_up = dataclasses.replace(walk, up_axis="Z")
+    p = view_positions(z_up)
+    fk = joint_positions(z_up) * z_up.meters_per_unit
+    np.testing.assert_allclose(p, np.stack([fk[..., 0], fk[..., 2], -fk[..., 1]], axis=-1), atol=1e-5)
+    # the GLB writer turns the same way: its root node carries the rotation taking Z-up to Y-up
+    gltf = GLTF2.load_from_bytes(glb_bytes(z_up))
+    x, y, z, w = gltf.nodes[0].rotation
+    angle = 2 * np.degrees(np.arctan2(np.linalg.norm([x, y, z]), w))
+    assert abs(angle - 90) < 1e-4 and abs(abs(x) - np.sqrt(0.5)) < 1e-6 and np.sign(x) == -np.sign(w)

@@ -1,0 +1,159 @@
+"""Stroboscope stills (``render --strobe N`` / ``--strobe-every 0.1s``): many poses of the
+rendered range in one picture, fading from the background colour (oldest) to the full
+body colour (latest), like Dartfish StroMotion.
+
+The body is built once and skinned at every chosen frame at once (one :func:`lbs` call);
+each pose is an opaque mesh of its own colour, so overlapping poses are depth-sorted by
+the renderer, not blended in an arbitrary order. The camera is the chosen preset held
+fixed over the whole range. The still is written atomically (PNG or JPEG).
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+
+from usdmotion.errors import OutputError, UsdMotionError
+from usdmotion.motion import Motion
+
+STILL_EXTENSIONS = (".png", ".jpg", ".jpeg")
+_EVERY = re.compile(r"^\s*(?P<value>[0-9]*\.?[0-9]+)\s*(?P<unit>s|ms|f|frames?)?\s*$", re.IGNORECASE)
+
+
+def strobe_frames(motion: Motion, start: int, end: int, count: int | None, every: str | None) -> np.ndarray:
+    """Source frames ``(N,)`` of the poses: ``count`` evenly spaced over ``start:end`` (end
+    exclusive, both ends shown), or one every ``every`` (``0.1s``, ``100ms``, ``12f``)."""
+    if (count is None) == (every is None):
+        raise UsdMotionError("give one of --strobe N or --strobe-every TIME")
+    last = end - 1
+    if count is not None:
+        if not 2 <= count <= 200:
+            raise UsdMotionError(f"--strobe must be 2..200 poses, got {count}")
+        return np.unique(np.rint(np.linspace(start, last, count)).astype(np.int64))
+    match = _EVERY.match(every)
+    if not match:
+        raise UsdMotionError(f"--strobe-every {every!r}: use seconds (0.1s), milliseconds (100ms) or frames (12f)")
+    value, unit = float(match["value"]), (match["unit"] or "s").lower()
+    step = value * motion.fps if unit == "s" else value * motion.fps / 1000.0 if unit == "ms" else value
+    if not step > 0:
+        raise UsdMotionError(f"--strobe-every {every!r} must be positive")
+    frames = np.unique(np.rint(np.arange(start, last + 1e-9, step)).astype(np.int64))
+    if not 2 <= len(frames) <= 200:
+        raise UsdMotionError(f"--strobe-every {every!r} gives {len(frames)} poses over frames {start}:{end} "
+                             "(need 2..200)")
+    return frames
+
+
+def check_still(path: Path) -> None:
+    """Fail early on a still that cannot be written."""
+    if path.suffix.lower() not in STILL_EXTENSIONS:
+        raise OutputError(f"{path}: a stroboscope still is one image: use .png or .jpg")
+    folder = path.parent if str(path.parent) else Path(".")
+    if not folder.is_dir():
+        raise OutputError(f"{path}: folder {folder} does not exist")
+
+
+def fade_colors(count: int, body, background, oldest: float = 0.3) -> np.ndarray:
+    """``(count, 4)`` RGBA: from ``oldest`` of the way to ``body`` (first pose) to ``body`` (last)."""
+    w = np.linspace(oldest, 1.0, count)[:, None]
+    rgb = (1 - w) * np.asarray(background[:3]) + w * np.asarray(body[:3])
+    return np.c_[rgb, np.ones(count)]
+
+
+def render_strobe(motion: Motion, output: str | Path, options, count: int | None = None,
+                  every: str | None = None) -> np.ndarray:
+    """Render the stroboscope still of ``motion`` to ``output``; returns its source frames ``(N,)``."""
+    import dataclasses
+
+    from usdmotion.io.atomic import atomic_output
+    from usdmotion.render import output_frames, plan_render
+
+    output = Path(output)
+    check_still(output)
+    rendered, _, _ = output_frames(motion, options)
+    frames = strobe_frames(motion, int(rendered[0]), int(rendered[-1]) + 1, count, every)
+    plan = plan_render(motion, dataclasses.replace(options, start=int(frames[0]), end=int(frames[-1]) + 1))
+    image = _draw(motion, frames, plan, options)
+    import OpenImageIO as oiio
+
+    with atomic_output(output) as tmp:
+        spec = oiio.ImageSpec(image.shape[1], image.shape[0], 3, "uint8")
+        out = oiio.ImageOutput.create(str(tmp))
+        if out is None or not out.open(str(tmp), spec) or not out.write_image(image):
+            raise OutputError(f"{output}: cannot write: {oiio.geterror()}")
+        out.close()
+    return frames
+
+
+def fixed_camera(motion: Motion, frames: np.ndarray, options, pad: float):
+    """The preset camera of ``options.camera`` held fixed, framing the joints at ``frames``."""
+    from usdmotion.render.space import render_joints
+    from usdmotion.render.camera import load_presets, preset_track
+
+    presets = load_presets()
+    if options.camera not in presets:
+        return None
+    held = {options.camera: dict(presets[options.camera], track="fixed", orbit=0.0)}
+    joints = render_joints(motion, frames)
+    times = frames / motion.fps
+    return preset_track(options.camera, joints, times, options.width / options.height, pad, presets=held)
+
+
+def _draw(motion: Motion, frames: np.ndarray, plan, options) -> np.ndarray:
+    from usdmotion.kinematics import fk_arrays, local_translations
+    from usdmotion.render.gl import import_pyrender, offscreen_renderer, render_rgb
+    from usdmotion.render.scene import COLORS, add_lights, grid_mesh, material, to_render_space
+    from usdmotion.skin import body_size, build_body, lbs, skinning_matrices
+
+    pyrender = import_pyrender()
+    import trimesh
+
+    body = build_body(motion, resolution=options.body_resolution)
+    world_q, world_p = fk_arrays(motion.rotations[frames], local_translations(motion)[frames], motion.parents)
+    positions = lbs(body.vertices, body.weight_matrix(), skinning_matrices(world_q, world_p, body.bind_transforms))
+    positions = to_render_space(positions, motion.meters_per_unit, motion.up_axis)
+    joints = to_render_space(world_p, motion.meters_per_unit, motion.up_axis)
+    camera = fixed_camera(motion, frames, options, 0.08 * body_size(motion) * motion.meters_per_unit) or plan.camera
+    scene = pyrender.Scene(bg_color=np.array(COLORS["background"]), ambient_light=np.full(3, 0.45))
+    scene.add(pyrender.PerspectiveCamera(yfov=camera.yfov, aspectRatio=options.width / options.height,
+                                         znear=camera.znear, zfar=camera.zfar), pose=camera.poses[-1])
+    for pose, color in zip(positions, fade_colors(len(frames), COLORS["body"], COLORS["background"])):
+        mesh = trimesh.Trimesh(pose, body.faces, process=False)
+        scene.add(pyrender.Mesh.from_trimesh(mesh, material=material(tuple(color)), smooth=True))
+    if options.grid:
+        margin = max(2.0, 2 * options.grid_scale)
+        lo, hi = joints.reshape(-1, 3).min(axis=0) - margin, joints.reshape(-1, 3).max(axis=0) + margin
+        distance = float(np.linalg.norm(camera.poses[-1][:3, 3] - joints[:, 0].mean(axis=0)))
+        for mesh in grid_mesh(lo, hi, plan.ground, options.grid_scale, max(0.0025 * distance, 0.004)):
+            scene.add(mesh)
+    travel = joints[-1, 0] - joints[0, 0]
+    travel[1] = 0.0
+    forward = travel / np.linalg.norm(travel) if np.linalg.norm(travel) > 1e-6 else np.array([0.0, 0.0, 1.0])
+    add_lights(scene, forward)
+    renderer = offscreen_renderer(options.width, options.height, msaa=options.msaa)
+    try:
+        image = render_rgb(renderer, scene, options.shadows)
+    finally:
+        renderer.delete()
+    if options.overlay:
+        from usdmotion.render.overlay import draw_text
+
+        seconds = (frames[-1] - frames[0]) / motion.fps
+        step = seconds / max(len(frames) - 1, 1)
+        draw_text(image, [options.labels[0], f"frames {frames[0]}-{frames[-1]}: {len(frames)} poses "
+                                             f"every {step:.3f} s"] if options.labels[0] else
+                  [f"frames {frames[0]}-{frames[-1]}: {len(frames)} poses every {step:.3f} s"])
+    return image
+
+
+def projected_roots(motion: Motion, frames: np.ndarray, options) -> np.ndarray:
+    """Pixel positions ``(N, 2)`` of the root at ``frames`` in the still (for tests, checks)."""
+    from usdmotion.render.space import render_joints
+    from usdmotion.render.camera import project
+    from usdmotion.skin import body_size
+
+    camera = fixed_camera(motion, frames, options, 0.08 * body_size(motion) * motion.meters_per_unit)
+    return project(render_joints(motion, frames)[:, 0], camera.poses[-1], camera.yfov, options.width, options.height)
+

@@ -1,0 +1,215 @@
+"""The studio's ASGI app (Starlette): the page, its local JavaScript packages, and a JSON/binary API.
+
+Every endpoint takes ids from :class:`~usdmotion.studio.library.Library` and answers 404
+for anything that does not resolve inside a root. Reading and analysis run in the
+thread pool (sync endpoints); a take that fails answers 422 with its one-line error.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+from starlette.applications import Starlette
+from starlette.requests import Request
+from starlette.responses import FileResponse, JSONResponse, Response
+from starlette.routing import Mount, Route
+from starlette.staticfiles import StaticFiles
+
+from usdmotion.studio import compare, takes
+from usdmotion.studio.library import Entry, Library, error_line, read_options
+
+WEB = Path(__file__).with_name("web")
+NODE_MODULES = WEB / "node_modules"
+#: Largest request body accepted (the API is read-only: GET requests carry none).
+MAX_BODY_BYTES = 64 * 1024
+#: Most ids in one metadata request, joints in one series request.
+MAX_IDS = 200
+
+
+class StudioError(Exception):
+    """An answer other than 200: ``status`` and a one-line message."""
+
+    def __init__(self, status: int, message: str) -> None:
+        super().__init__(message)
+        self.status = status
+
+
+def missing_web_packages() -> list[str]:
+    """The npm packages the page needs that are not installed (``npm ci`` in ``web/``)."""
+    need = {"three": "build/three.module.js", "uplot": "dist/uPlot.esm.js"}
+    return [name for name, file in need.items() if not (NODE_MODULES / name / file).is_file()]
+
+
+class StudioApi:
+    """The JSON/binary endpoints, one method each, over one library and its take cache."""
+
+    def __init__(self, library: Library, cache: takes.TakeCache, options: dict, out: Path | None) -> None:
+        self.library, self.cache, self.options, self.out = library, cache, options, out
+
+    def routes(self) -> list[Route]:
+        return [Route(f"/api/{name}", getattr(self, name.replace("-", "_")))
+                for name in ("takes", "meta", "skeleton", "positions", "com", "series", "glb", "compare")]
+
+    def take(self, request: Request, param: str = "take") -> Entry:
+        entry = self.library.resolve(request.query_params.get(param, ""))
+        if entry is None:
+            raise StudioError(404, "not found")
+        return entry
+
+    def compute(self, entry: Entry, what: str, fn):
+        try:
+            return self.cache.get(entry, what, fn)
+        except Exception as exc:  # noqa: BLE001 - one line to the page, the server keeps running
+            raise StudioError(422, error_line(entry, exc)) from None
+
+    def takes(self, request: Request) -> Response:
+        entries = self.library.scan()
+        return JSONResponse({"roots": [r.name for r in self.library.roots],
+                             "takes": [{"id": e.id, "name": e.name, "size": e.size} for e in entries],
+                             "quantities": {k: {"label": v[0], "unit": v[1]} for k, v in takes.QUANTITIES.items()},
+                             "read_options": self.options,
+                             "out": str(self.out) if self.out else None})
+
+    def meta(self, request: Request) -> Response:
+        ids = request.query_params.getlist("id")
+        if len(ids) > MAX_IDS:
+            raise StudioError(413, f"at most {MAX_IDS} ids per request")
+        entries = {take_id: self.library.resolve(take_id) for take_id in ids}
+        return JSONResponse({"meta": {take_id: self.library.metadata(e) if e else {"error": "not found"}
+                                      for take_id, e in entries.items()}})
+
+    def skeleton(self, request: Request) -> Response:
+        return JSONResponse(self.compute(self.take(request), "skeleton", takes.skeleton))
+
+    def positions(self, request: Request) -> Response:
+        return Response(self.compute(self.take(request), "positions", takes.view_positions).tobytes(),
+                        media_type="application/octet-stream")
+
+    def com(self, request: Request) -> Response:
+        entry = self.take(request)
+        kin = self.compute(entry, "analysis", takes.analysis)
+        if kin.com is None:
+            raise StudioError(404, "no centre of mass for this skeleton (its landmarks were not found)")
+        motion = self.cache.motion(entry)
+        p = takes.to_view(kin.com * (1.0 if kin.length_unit == "m" else motion.meters_per_unit), motion.up_axis)
+        return Response(np.ascontiguousarray(p, dtype=np.float32).tobytes(), media_type="application/octet-stream")
+
+    def series(self, request: Request) -> Response:
+        kin = self.compute(self.take(request), "analysis", takes.analysis)
+        joints = [j for j in request.query_params.get("joints", "").split(",") if j][:MAX_IDS]
+        quantities = [q for q in request.query_params.get("q", "bend,speed,com_height,com_speed").split(",") if q]
+        bad = [j for j in joints if j not in kin.joint_names] + [q for q in quantities if q not in takes.QUANTITIES]
+        if bad:
+            raise StudioError(400, f"unknown joint or quantity {bad[0]!r}")
+        return JSONResponse(takes.series(kin, joints, quantities))
+
+    def glb(self, request: Request) -> Response:
+        from usdmotion.io.gltf import glb_bytes
+
+        entry = self.take(request)
+        data = self.compute(entry, "glb",
+                            lambda m: cached_glb(entry, self.options, self.out, lambda: glb_bytes(m, mesh=True)))
+        return Response(data, media_type="model/gltf-binary")
+
+    def compare(self, request: Request) -> Response:
+        """Frame of ``b`` for every frame of ``a`` (``mode`` dtw, or offset by ``offset`` s) and the
+        4×4 matrix putting ``b`` on ``a`` at ``frame``."""
+        a, b = self.take(request, "a"), self.take(request, "b")
+        ma, mb = self.compute(a, "motion", None), self.compute(b, "motion", None)
+        mode, offset, frame = _compare_params(request, ma.n_frames)
+        try:
+            frame_map = (compare.dtw_frame_map(ma, mb) if mode == "dtw" else compare.offset_frame_map(ma, mb, offset))
+            align = compare.spatial_alignment(ma, frame, mb, int(round(frame_map[frame])))
+        except Exception as exc:  # noqa: BLE001
+            raise StudioError(422, str(exc).splitlines()[0] if str(exc) else type(exc).__name__) from None
+        return JSONResponse({"map": np.round(frame_map, 3).tolist(), "frame": frame, "align": align.tolist()})
+
+
+def _compare_params(request: Request, n_frames: int) -> tuple[str, float, int]:
+    mode = request.query_params.get("mode", "dtw")
+    try:
+        offset = float(request.query_params.get("offset", "0"))
+        frame = int(request.query_params.get("frame", "0"))
+    except ValueError:
+        raise StudioError(400, "offset must be seconds and frame a frame number") from None
+    if mode not in ("dtw", "offset") or not np.isfinite(offset):
+        raise StudioError(400, "mode must be dtw or offset, offset a finite number of seconds")
+    return mode, offset, min(max(frame, 0), n_frames - 1)
+
+
+def create_app(roots: list[Path], options: dict | None = None, out: Path | None = None) -> Starlette:
+    """The studio over ``roots``, reading with ``options`` (:func:`usdmotion.io.read_motion`
+    keywords); ``out`` is the only folder it may write to (created on first use)."""
+    options = read_options(**(options or {}))
+    cache = takes.TakeCache(options)
+    api = StudioApi(Library(roots, options, read=cache.motion), cache, options, out)
+
+    def index(request: Request) -> Response:
+        return FileResponse(WEB / "index.html", headers={"Cache-Control": "no-cache"})
+
+    routes = [Route("/", index), *api.routes(),
+              Mount("/app", StaticFiles(directory=WEB, check_dir=False), name="app"),
+              Mount("/vendor/three", StaticFiles(directory=NODE_MODULES / "three", check_dir=False), name="three"),
+              Mount("/vendor/uplot", StaticFiles(directory=NODE_MODULES / "uplot", check_dir=False), name="uplot")]
+    app = Starlette(routes=routes, exception_handlers={StudioError: _error_response})
+    app.add_middleware(_Guard)
+    app.state.api = api
+    return app
+
+
+def cached_glb(entry: Entry, options: dict, out: Path | None, make) -> bytes:
+    """The take's GLB from ``out/cache/glb`` (keyed by path, size, mtime and reading options), or
+    ``make()`` written there atomically. Building the skinned body takes seconds; reopening must not."""
+    import hashlib
+
+    from usdmotion.io.atomic import atomic_output
+
+    if out is None:
+        return make()
+    key = f"{entry.path}|{entry.size}|{entry.mtime_ns}|{sorted(options.items())}|v1"
+    path = out / "cache" / "glb" / f"{hashlib.sha1(key.encode()).hexdigest()}.glb"
+    if path.is_file():
+        return path.read_bytes()
+    data = make()
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with atomic_output(path) as tmp:
+            tmp.write_bytes(data)
+    except OSError:
+        pass  # a read-only or full output folder only loses the cache
+    return data
+
+
+async def _error_response(request: Request, exc: StudioError) -> Response:
+    return JSONResponse({"error": str(exc)}, status_code=exc.status)
+
+
+class _Guard:
+    """Read-only, bounded requests (GET/HEAD, no body over ``MAX_BODY_BYTES``); adds a
+    ``Server-Timing`` header with the time the server spent on the request."""
+
+    def __init__(self, app) -> None:
+        self.app = app
+
+    async def __call__(self, scope, receive, send) -> None:
+        if scope["type"] != "http":
+            return await self.app(scope, receive, send)
+        headers = dict(scope.get("headers") or [])
+        length = headers.get(b"content-length", b"0")
+        if scope["method"] not in ("GET", "HEAD"):
+            return await JSONResponse({"error": "read-only"}, status_code=405)(scope, receive, send)
+        if not length.isdigit() or int(length) > MAX_BODY_BYTES:
+            return await JSONResponse({"error": "request too large"}, status_code=413)(scope, receive, send)
+        if scope["path"].startswith(("/app/node_modules", "/app/package")):  # packages: under /vendor only
+            return await JSONResponse({"error": "not found"}, status_code=404)(scope, receive, send)
+        start = time.perf_counter()
+
+        async def timed_send(message) -> None:
+            if message["type"] == "http.response.start":
+                ms = (time.perf_counter() - start) * 1000.0
+                message["headers"] = [*message.get("headers", []), (b"server-timing", f"app;dur={ms:.1f}".encode())]
+            await send(message)
+
+        await self.app(scope, receive, timed_send)

@@ -1,0 +1,155 @@
+"""The take library: files under the studio's roots, safe look-up by id, lazy metadata.
+
+A take's id is ``"<root index>/<path relative to that root>"`` (POSIX separators). Only
+ids that resolve, after following symlinks, to a motion file inside their root are
+served; everything else is "not found", so a crafted id can never name a file elsewhere.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+from dataclasses import dataclass
+from pathlib import Path, PurePosixPath
+
+from usdmotion.io import AMC_EXTENSIONS, BVH_EXTENSIONS, GLTF_EXTENSIONS, USD_EXTENSIONS
+
+MOTION_EXTENSIONS = BVH_EXTENSIONS + USD_EXTENSIONS + GLTF_EXTENSIONS + AMC_EXTENSIONS
+#: Files larger than this are listed with an error instead of being read (a studio must
+#: not be taken down by one huge file). 512 MiB is several hours of 120 fps capture.
+MAX_FILE_BYTES = 512 * 1024 * 1024
+
+
+def read_options(**options) -> dict:
+    """Keyword arguments of :func:`usdmotion.io.read_motion` for every take (``units``,
+    ``up_axis``... as the CLI's reading options give them), ``None`` values left out."""
+    return {k: v for k, v in options.items() if v is not None}
+
+
+@dataclass(frozen=True)
+class Entry:
+    """One take file: its id, display name and the resolved path (never sent to clients)."""
+
+    id: str
+    name: str
+    path: Path
+    size: int
+    mtime_ns: int
+
+
+class Library:
+    """Takes under ``roots`` (folders, searched recursively, or single files)."""
+
+    def __init__(self, roots: list[Path], options: dict | None = None, read=None) -> None:
+        self.roots = [Path(r).resolve() for r in roots]
+        self.options = options or {}
+        #: ``read(entry) -> Motion``; the app passes its take cache so a take listed is already read
+        self.read = read or (lambda entry: read_take(entry, self.options))
+        self._meta: dict[tuple[str, int, int], dict] = {}
+        self._lock = threading.Lock()
+
+    def scan(self) -> list[Entry]:
+        """Every motion file under the roots, sorted by id (stat only; nothing is read)."""
+        entries = []
+        for index, root in enumerate(self.roots):
+            if root.is_file():
+                entry = self._entry(index, root.name)
+                entries += [entry] if entry else []
+                continue
+            for folder, dirs, files in os.walk(root):
+                dirs[:] = sorted(d for d in dirs if not d.startswith("."))
+                rel = Path(folder).relative_to(root)
+                for name in sorted(files):
+                    if name.lower().endswith(MOTION_EXTENSIONS) and not name.startswith("."):
+                        entry = self._entry(index, (rel / name).as_posix())
+                        entries += [entry] if entry else []
+        return sorted(entries, key=lambda e: e.id)
+
+    def resolve(self, take_id: str) -> Entry | None:
+        """The entry of ``take_id`` if it names a motion file inside its root, else ``None``."""
+        if not isinstance(take_id, str) or len(take_id) > 4096 or "\\" in take_id or "\0" in take_id:
+            return None
+        head, _, rel = take_id.partition("/")
+        if not head.isdigit() or int(head) >= len(self.roots) or not rel:
+            return None
+        parts = PurePosixPath(rel).parts
+        if rel.startswith("/") or any(p in ("..", ".", "") for p in rel.split("/")) or not parts:
+            return None
+        return self._entry(int(head), rel)
+
+    def _entry(self, index: int, rel: str) -> Entry | None:
+        root = self.roots[index]
+        if root.is_file():
+            if rel != root.name:
+                return None
+            path = root
+        else:
+            path = Path(os.path.realpath(root / rel))
+            if not path.is_relative_to(root):  # a symlink out of the root, or ..
+                return None
+        if not path.name.lower().endswith(MOTION_EXTENSIONS):
+            return None
+        try:
+            st = path.stat()
+        except OSError:
+            return None
+        if not path.is_file():
+            return None
+        return Entry(f"{index}/{rel}", rel, path, st.st_size, st.st_mtime_ns)
+
+    def metadata(self, entry: Entry) -> dict:
+        """Joints, frames, fps, duration, rig family and height, or ``{"error": one line}``.
+
+        Cached by path, size and mtime: a file changed on disk is read again.
+        """
+        key = (str(entry.path), entry.size, entry.mtime_ns)
+        with self._lock:
+            if key in self._meta:
+                return self._meta[key]
+        meta = describe_take(entry, self.read)
+        with self._lock:
+            self._meta[key] = meta
+        return meta
+
+
+def describe_take(entry: Entry, read) -> dict:
+    """Library metadata of one take read by ``read(entry)`` (see :meth:`Library.metadata`)."""
+    from usdmotion.kinematics import skeleton_height
+    from usdmotion.skeleton_names import detect_profile
+
+    try:
+        motion = read(entry)
+        names = [n for n, end in zip(motion.joint_names, motion.end_sites) if not end]
+        return {
+            "joints": len(names),
+            "frames": motion.n_frames,
+            "fps": motion.fps,
+            "duration_s": motion.duration,
+            "rig": detect_profile(names) or "unknown",
+            "height_m": skeleton_height(motion) * motion.meters_per_unit,
+        }
+    except Exception as exc:  # noqa: BLE001 - every failure becomes the take's one-line error
+        return {"error": error_line(entry, exc)}
+
+
+def read_take(entry: Entry, options: dict):
+    """Read a take with the studio's reading options (``read_motion`` keywords; raises
+    ``InputError`` for huge files)."""
+    from usdmotion.errors import InputError
+    from usdmotion.io import read_motion
+
+    if entry.size > MAX_FILE_BYTES:
+        raise InputError(entry.name, f"file is {entry.size:,} bytes; the studio reads files up to "
+                                     f"{MAX_FILE_BYTES:,} bytes")
+    return read_motion(entry.path, **options)
+
+
+def error_line(entry: Entry, exc: BaseException) -> str:
+    """The one-line message of ``exc`` with the take's library name instead of its full path."""
+    text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+    text = text.replace(str(entry.path), entry.name)
+    if isinstance(exc, MemoryError):
+        text = f"{entry.name}: not enough memory to read it"
+    elif entry.name not in text:
+        text = f"{entry.name}: {text}"
+    return text

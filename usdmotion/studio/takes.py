@@ -1,0 +1,130 @@
+"""What the browser draws for a take, computed by the library (server side).
+
+Everything here is in the viewer's frame: metres, Y up (a Z-up file is turned by
+``(x, y, z) → (x, z, −y)``). Joint positions come from :func:`usdmotion.kinematics.joint_positions`,
+the plots from :func:`usdmotion.ops.analyse.analyse`; JavaScript only indexes these arrays.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections import OrderedDict
+
+import numpy as np
+
+from usdmotion.motion import Motion
+from usdmotion.studio.library import Entry, read_take
+
+#: Quantities the plots offer: key → (label, unit). ``bend``/``speed`` are per joint.
+QUANTITIES = {
+    "bend": ("joint angle", "deg"),
+    "speed": ("joint speed", "m/s"),
+    "com_height": ("centre-of-mass height", "m"),
+    "com_speed": ("centre-of-mass speed", "m/s"),
+}
+
+
+def to_view(points: np.ndarray, up_axis: str) -> np.ndarray:
+    """File axes ``(..., 3)`` → viewer axes (Y up, right-handed)."""
+    if up_axis == "Y":
+        return points
+    return np.stack([points[..., 0], points[..., 2], -points[..., 1]], axis=-1)
+
+
+class TakeCache:
+    """Motions and their analysis, read once per (path, size, mtime); a few kept (LRU)."""
+
+    def __init__(self, options: dict, size: int = 6) -> None:
+        self.options = options
+        self.size = size
+        self._items: OrderedDict[tuple, dict] = OrderedDict()
+        self._lock = threading.Lock()
+
+    def _slot(self, entry: Entry) -> dict:
+        key = (str(entry.path), entry.size, entry.mtime_ns)
+        with self._lock:
+            slot = self._items.get(key)
+            if slot is None:
+                slot = self._items[key] = {"locks": {}}
+                while len(self._items) > self.size:
+                    self._items.popitem(last=False)
+            self._items.move_to_end(key)
+        return slot
+
+    def _computed(self, slot: dict, what: str, compute):
+        """``slot[what]``, computed once: one lock per value, so a slow value (the body) never
+        holds up a quick one (the positions) of the same take."""
+        with self._lock:
+            lock = slot["locks"].setdefault(what, threading.Lock())
+        with lock:
+            if what not in slot:
+                slot[what] = compute()
+            return slot[what]
+
+    def get(self, entry: Entry, what: str, compute):
+        """``compute(motion)`` for this take, cached under ``what`` (the motion under ``"motion"``)."""
+        slot = self._slot(entry)
+        motion = self._computed(slot, "motion", lambda: read_take(entry, self.options))
+        return motion if what == "motion" else self._computed(slot, what, lambda: compute(motion))
+
+    def motion(self, entry: Entry) -> Motion:
+        return self.get(entry, "motion", None)
+
+
+def skeleton(motion: Motion) -> dict:
+    """Topology and timing for the viewer (JSON-ready)."""
+    return {
+        "joint_names": list(motion.joint_names),
+        "parents": [int(p) for p in motion.parents],
+        "end_sites": [bool(e) for e in motion.end_sites],
+        "frames": motion.n_frames,
+        "fps": motion.fps,
+        "duration_s": motion.duration,
+        "meters_per_unit": motion.meters_per_unit,
+        "up_axis": motion.up_axis,
+    }
+
+
+def view_positions(motion: Motion) -> np.ndarray:
+    """World joint positions ``(F, J, 3)`` float32, metres, viewer axes."""
+    from usdmotion.kinematics import joint_positions
+
+    p = to_view(joint_positions(motion) * motion.meters_per_unit, motion.up_axis)
+    return np.ascontiguousarray(p, dtype=np.float32)
+
+
+def analysis(motion: Motion):
+    """The library's kinematics of every frame, with centre of mass where the body model fits."""
+    from usdmotion.anthropometry import body_model
+    from usdmotion.errors import UsdMotionError
+    from usdmotion.ops.analyse import analyse
+
+    try:
+        body = body_model(motion)
+    except (UsdMotionError, ValueError):
+        body = None
+    return analyse(motion, body=body)
+
+
+def series(kin, joints: list[str], quantities: list[str]) -> dict:
+    """Plot series ``{"time": (F,), "series": [{key, joint, label, unit, values}]}``.
+
+    ``bend``: the angle at the joint between its parent and child bones (0 = straight),
+    ``speed``: the joint's speed, ``com_*``: centre of mass (up component / speed). NaN → null.
+    """
+    index = {n: j for j, n in enumerate(kin.joint_names)}
+    out = []
+    for q in quantities:
+        label, unit = QUANTITIES[q]
+        if q in ("bend", "speed"):
+            for name in joints:
+                j = index[name]
+                v = kin.bend[:, j] if q == "bend" else np.linalg.norm(kin.velocities[:, j], axis=-1)
+                out.append({"key": q, "joint": name, "label": f"{name} {label}", "unit": unit, "values": v})
+        elif kin.com is not None:
+            v = kin.com[:, kin.up_index] if q == "com_height" else np.linalg.norm(kin.com_velocity, axis=-1)
+            out.append({"key": q, "joint": None, "label": label, "unit": unit, "values": v})
+    for s in out:
+        v = np.round(np.asarray(s["values"], dtype=np.float64), 5)
+        s["values"] = np.where(np.isfinite(v), v, None).tolist()  # JSON has no NaN: null
+    return {"time": np.round(kin.time, 6).tolist(), "series": out, "com": kin.com is not None}

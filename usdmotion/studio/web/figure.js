@@ -1,0 +1,131 @@
+// One take drawn in the scene: stick figure (from the server's joint positions), the skinned
+// body (GLB from the server, skinned on the GPU by three.js), a trace; all in one group so a
+// compare ghost can be moved by the spatial alignment.
+import * as THREE from 'three';
+import {GLTFLoader} from 'three/addons/loaders/GLTFLoader.js';
+import {clone as cloneSkinned} from 'three/addons/utils/SkeletonUtils.js';
+
+export class Figure {
+  constructor(take, {color = 0x1f5fbf, opacity = 1} = {}) {
+    this.take = take;
+    this.J = take.joint_names.length;
+    this.group = new THREE.Group();
+    this.color = color;
+    this.opacity = opacity;
+    this.bones = take.parents.map((p, j) => [j, p]).filter(([, p]) => p >= 0);
+    const transparent = opacity < 1;
+    const lineGeometry = new THREE.BufferGeometry();
+    lineGeometry.setAttribute('position', new THREE.BufferAttribute(new Float32Array(this.bones.length * 6), 3));
+    this.stick = new THREE.LineSegments(lineGeometry,
+      new THREE.LineBasicMaterial({color, transparent, opacity, depthTest: !transparent}));
+    const sphere = new THREE.SphereGeometry(0.025, 10, 8);
+    this.joints = new THREE.InstancedMesh(sphere,
+      new THREE.MeshStandardMaterial({color, transparent, opacity}), this.J);
+    this.stickGroup = new THREE.Group();
+    this.stickGroup.add(this.stick, this.joints);
+    this.group.add(this.stickGroup);
+    this.body = null;
+    this.mixer = null;
+    this.traces = [];
+    this.frame = 0;
+  }
+
+  /** Joint j's position at frame f (metres, viewer axes), from the server's array. */
+  joint(f, j) {
+    const i = (f * this.J + j) * 3, p = this.take.positions;
+    return new THREE.Vector3(p[i], p[i + 1], p[i + 2]);
+  }
+
+  setFrame(frame) {
+    const f = Math.max(0, Math.min(this.take.frames - 1, Math.round(frame)));
+    this.frame = f;
+    const p = this.take.positions, base = f * this.J * 3;
+    const line = this.stick.geometry.attributes.position.array;
+    this.bones.forEach(([j, q], b) => {
+      for (let k = 0; k < 3; k++) {
+        line[b * 6 + k] = p[base + j * 3 + k];
+        line[b * 6 + 3 + k] = p[base + q * 3 + k];
+      }
+    });
+    this.stick.geometry.attributes.position.needsUpdate = true;
+    this.stick.geometry.computeBoundingSphere();
+    const m = new THREE.Matrix4();
+    for (let j = 0; j < this.J; j++) {
+      m.makeTranslation(p[base + j * 3], p[base + j * 3 + 1], p[base + j * 3 + 2]);
+      this.joints.setMatrixAt(j, m);
+    }
+    this.joints.instanceMatrix.needsUpdate = true;
+    this.joints.computeBoundingSphere();
+    if (this.mixer) this.mixer.setTime(f / this.take.fps);
+  }
+
+  /** Load the skinned body GLB; resolves false (stick figure only) where the server has none. */
+  async loadBody(url) {
+    let gltf;
+    try {
+      gltf = await new GLTFLoader().loadAsync(url);
+    } catch (e) {
+      return false;
+    }
+    const body = gltf.scene;
+    body.traverse(o => {
+      if (o.isMesh) {
+        o.frustumCulled = false;
+        o.material = new THREE.MeshStandardMaterial({color: this.opacity < 1 ? 0xd07020 : 0xc8b8a8, roughness: 0.8,
+          transparent: this.opacity < 1, opacity: this.opacity < 1 ? 0.4 : 1, depthWrite: this.opacity >= 1});
+      }
+    });
+    this.body = body;
+    this.clips = gltf.animations;
+    if (gltf.animations.length) {
+      this.mixer = new THREE.AnimationMixer(body);
+      this.mixer.clipAction(gltf.animations[0]).play();
+    }
+    this.group.add(body);
+    this.setFrame(this.frame);
+    return true;
+  }
+
+  /** Paths over frames first..last: ``lines`` = [[values (F*3), colour], ...] (replaces the previous ones). */
+  setTraces(lines, first, last) {
+    this.traces.forEach(t => { this.group.remove(t); t.geometry.dispose(); });
+    this.traces = lines.map(([values, color]) => {
+      const g = new THREE.BufferGeometry();
+      g.setAttribute('position', new THREE.BufferAttribute(values.slice(first * 3, (last + 1) * 3), 3));
+      const line = new THREE.Line(g, new THREE.LineBasicMaterial({color, transparent: this.opacity < 1,
+                                                                  opacity: this.opacity}));
+      this.group.add(line);
+      return line;
+    });
+  }
+
+  /** Positions (n*3) of one joint over all frames, for a trace. */
+  jointPath(j) {
+    const out = new Float32Array(this.take.frames * 3), p = this.take.positions;
+    for (let f = 0; f < this.take.frames; f++) {
+      const i = (f * this.J + j) * 3;
+      out[f * 3] = p[i]; out[f * 3 + 1] = p[i + 1]; out[f * 3 + 2] = p[i + 2];
+    }
+    return out;
+  }
+
+  /** A static copy of the figure at frame f (stroboscope). */
+  snapshot(f, opacity) {
+    const copy = new Figure(this.take, {color: this.color, opacity});
+    copy.setFrame(f);
+    const g = new THREE.Group();
+    g.add(copy.stickGroup);
+    if (this.body && this.clips && this.clips.length) {
+      const body = cloneSkinned(this.body);
+      const mixer = new THREE.AnimationMixer(body);
+      mixer.clipAction(this.clips[0]).play();
+      mixer.setTime(f / this.take.fps);
+      g.add(body);
+    }
+    return g;
+  }
+
+  dispose() {
+    this.group.traverse(o => { if (o.geometry) o.geometry.dispose(); });
+  }
+}
