@@ -6,6 +6,7 @@ import json
 
 import numpy as np
 import pytest
+from conftest import without_warnings
 from reference_fk import usd_world_positions
 
 from usdmotion.cli import main
@@ -92,6 +93,6 @@ def test_bad_options_one_line_exit_2(shared_file, tmp_path, capsys, args, fragme
     (tmp_path / "notes.txt").write_text("hello")
     code, out, err = run(capsys, *[a.format(walk=walk, tmp=tmp_path) for a in args])
     assert code == 2
-    lines = err.strip().splitlines()
+    lines = without_warnings(err)
     assert len(lines) == 1 and fragment in lines[0], err
     assert not (tmp_path / "x.usda").exists()

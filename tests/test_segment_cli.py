@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import without_warnings
 
 from usdmotion.cli import main
 from usdmotion.io import read_motion
@@ -153,7 +154,7 @@ def test_bad_input_is_one_line_exit_2_and_writes_nothing(shared_file, tmp_path, 
     code, stdout, err = run(capsys, "segment", path, *args, "--out", out, "--plot", plot, "--export-clips",
                             tmp_path / "clips")
     assert code == 2
-    lines = err.strip().splitlines()
+    lines = without_warnings(err)
     assert len(lines) == 1 and lines[0].startswith("usdmotion: error: ") and message in lines[0]
     assert "Traceback" not in err
     assert not out.exists() and not plot.exists() and not (tmp_path / "clips").exists()

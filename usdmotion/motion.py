@@ -114,6 +114,10 @@ class Motion:
             (Blender, bvhio, pybvh).
         source_channels: ``(F, C)`` the channel values as read (degrees, file units), or
             ``None``. Only a hint for choosing among equivalent Euler triples on write.
+        meshes: skinned meshes bound to this skeleton, read from a USD input
+            (:class:`usdmotion.io.usd_skin.SkinnedMesh`, bound by joint *name*); kept by
+            operations that keep the skeleton, written back by the USD writer, which
+            leaves out (with a warning) any mesh whose joints are gone or changed.
 
     Arrays passed in are copied into read-only arrays, except arrays that are already
     read-only and own their data (another Motion's, or ones a reader hands over): those
@@ -133,6 +137,7 @@ class Motion:
     channels: tuple[tuple[str, ...], ...] | None = None
     root_offset: RootOffset = "add"
     source_channels: np.ndarray | None = field(default=None, repr=False)
+    meshes: tuple = field(default=(), repr=False)
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__

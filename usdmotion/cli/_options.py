@@ -25,15 +25,18 @@ class RootOffsetChoice(str, Enum):
 class UpAxisChoice(str, Enum):
     Y = "Y"
     Z = "Z"
+    auto = "auto"
 
 
 InputPath = Annotated[Path, typer.Argument(help="Input motion: .bvh, .usd, .usda, .usdc, .usdz, .glb or .gltf.",
                                            show_default=False)]
 Units = Annotated[str | None, typer.Option(
     "--units", help="Length unit of a BVH file: cm, m, mm, in, ft, asf (CMU, 1/0.45 in), or metres per "
-                    "unit as a number. Default: cm for BVH; the file's for USD and glTF.", show_default=False)]
+                    "unit as a number, or auto (guessed from the body, reason given; see docs/units_guess.md). "
+                    "Default: cm for BVH; the file's for USD and glTF.", show_default=False)]
 UpAxis = Annotated[UpAxisChoice | None, typer.Option(
-    "--up-axis", help="Vertical axis of a BVH file (default Y); overrides a USD or glTF file's.", show_default=False,
+    "--up-axis", help="Vertical axis of a BVH file (default Y), or auto (guessed from the body); overrides a "
+                      "USD or glTF file's.", show_default=False,
     case_sensitive=False)]
 RootOffset = Annotated[RootOffsetChoice, typer.Option(
     "--root-offset", help="BVH root OFFSET: 'add' to the root position channels (BVH spec), 'replace' by "
@@ -67,6 +70,10 @@ Skeleton = Annotated[str | None, typer.Option(
                        "several skeletons, or the skin (index or name) of a glTF file with several.",
     show_default=False)]
 
+Resample = Annotated[bool, typer.Option(
+    "--resample", help="Read a USD animation whose time samples are unevenly spaced at even steps (the usual "
+                       "step; USD interpolates) instead of refusing it.")]
+
 
 @dataclass(frozen=True)
 class ReadOptions:
@@ -82,6 +89,7 @@ class ReadOptions:
     lenient: bool = False
     ignore_joint_positions: bool = False
     skeleton: str | None = None
+    resample: bool = False
 
     def __post_init__(self) -> None:
         if self.units is not None:  # checked before any work, not after reading a long take
@@ -101,7 +109,7 @@ class ReadOptions:
 #: The parameters :func:`reads_motion` adds to a command: (name, annotation, default).
 READ_PARAMETERS = (("units", Units, None), ("up_axis", UpAxis, None), ("root_offset", RootOffset, RootOffsetChoice.auto),
                    ("lenient", Lenient, False), ("ignore_joint_positions", IgnoreJointPositions, False),
-                   ("skeleton", Skeleton, None))
+                   ("skeleton", Skeleton, None), ("resample", Resample, False))
 
 
 def option_group(parameters: tuple, into: str, group: type) -> Callable[[Callable], Callable]:
@@ -131,6 +139,6 @@ def option_group(parameters: tuple, into: str, group: type) -> Callable[[Callabl
 
 
 #: Gives a command the shared reading options (``--units``, ``--up-axis``, ``--root-offset``,
-#: ``--lenient``, ``--ignore-joint-positions``, ``--skeleton``) as ``read: ReadOptions``; it
+#: ``--lenient``, ``--ignore-joint-positions``, ``--skeleton``, ``--resample``) as ``read: ReadOptions``; it
 #: reads with ``read.read(path)``.
 reads_motion = option_group(READ_PARAMETERS, "read", ReadOptions)

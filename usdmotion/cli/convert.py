@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from usdmotion.cli._options import InputPath, ReadOptions, reads_motion
+from usdmotion.cli._options import InputPath, ReadOptions, UpAxisChoice, reads_motion
 from usdmotion.cli._progress import progress
 from usdmotion.cli.app import app
 
@@ -24,6 +24,9 @@ def convert(
                                                       "(USD and glTF outputs).")] = False,
     fps: Annotated[float | None, typer.Option("--fps", help="Resample to this frame rate first (e.g. 30 for a "
                                                             "smaller file).", show_default=False)] = None,
+    to_up_axis: Annotated[UpAxisChoice | None, typer.Option(
+        "--to-up-axis", help="Turn the output to this up axis (Y for AR Quick Look); default: keep the input's.",
+        case_sensitive=False, show_default=False)] = None,
     read: ReadOptions = ReadOptions(),
 ) -> None:
     """Convert a motion between BVH, OpenUSD (UsdSkel) and glTF 2.0 (GLB)."""
@@ -36,6 +39,10 @@ def convert(
         from usdmotion.ops.edit.timewarp import resample
 
         motion = resample(motion, fps)
+    if to_up_axis is not None and to_up_axis.value != "auto":
+        from usdmotion.ops.up_axis import convert_up_axis
+
+        motion = convert_up_axis(motion, to_up_axis.value)
     with progress(f"writing {output.name}"):
         problems = convert_motion(motion, output, mesh, validate)
     for problem in problems:

@@ -20,8 +20,15 @@ def info(
     """Describe a motion file: skeleton, timing, channels and units."""
     from usdmotion.summary import describe
 
-    summary = describe(read.read(source))
-    summary = {"file": str(source), **summary}
+    motion = read.read(source)
+    summary = {"file": str(source), **describe(motion)}
+    if source.suffix.lower() in (".usd", ".usda", ".usdc", ".usdz"):
+        from usdmotion.io.usd import _open_stage
+        from usdmotion.io.usd_read import list_skeletons
+
+        summary["skeletons"] = list_skeletons(_open_stage(source))
+        summary["meshes"] = [{"name": m.name, "points": len(m.points), "blend_shapes": [b.name for b in m.blend_shapes]}
+                             for m in motion.meshes]
     if as_json:
         typer.echo(json.dumps(summary, indent=2))
         return
@@ -42,6 +49,11 @@ def _print_summary(s: dict) -> None:
     console.print(f"  units       1 unit = {unit.removeprefix('1 ')} ({s['meters_per_unit']:g} m), {s['up_axis']}-up, "
                   f"root offset {s['root_offset']}, rest extent {s['rest_extent']:.4g} units "
                   f"({s['rest_extent_m']:.3g} m)")
+    if len(s.get("skeletons", [])) > 1:
+        console.print(f"  skeletons   {', '.join(s['skeletons'])} (choose with --skeleton)")
+    for m in s.get("meshes", []):
+        shapes = f", blend shapes {', '.join(m['blend_shapes'])}" if m["blend_shapes"] else ""
+        console.print(f"  mesh        {m['name']}: {m['points']} points skinned to the skeleton{shapes}")
     if s["joints_with_position_channels"]:
         names = s["joints_with_position_channels"]
         console.print(f"  positions   on {len(names)} non-root joints: {', '.join(names[:6])}"

@@ -27,6 +27,8 @@ def render(
     camera: Annotated[str, Opt(help="Preset (side, front, top, follow, orbit) or a USD camera: "
                                     "cam.usda[:/Path/To/Camera].")] = "side",
     style: Annotated[str, Opt(help="body, stick or both.")] = "body",
+    body: Annotated[str, Opt(help="auto (the input's own skinned mesh if it has one), stage or generated "
+                                  "(usdmotion's capsule body).")] = "auto",
     grid: Annotated[bool, Opt(help="Draw the ground grid.")] = True,
     grid_scale: Annotated[float, Opt(help="Grid spacing in metres.")] = 1.0,
     trace: Annotated[list[str] | None, Opt(help="Joint name or 'com' whose path to draw (repeatable).")] = None,
@@ -63,7 +65,7 @@ def render(
                             style=style, grid=grid, grid_scale=grid_scale, traces=tuple(trace or ()),
                             overlay=overlay, compare_mode=compare_mode, shadows=shadows, msaa=msaa, quality=quality,
                             labels=(source.name, compare.name if compare else ""), angles=tuple(angle or ()),
-                            align=align, panel=panel, layout=layout, contact_shadow=contact_shadow)
+                            align=align, panel=panel, layout=layout, contact_shadow=contact_shadow, body=body)
     check_options(options)  # every option before any work
     if strobe is None and strobe_every is None:
         check_output(output, width, height)

@@ -82,10 +82,25 @@ def retarget(
     from usdmotion.ops.retarget.solve import enable_compilation_cache
 
     enable_compilation_cache()
-    motion = read.read(source)
+    motion = drop_meshes(read.read(source), source)
     target_motion = None if target is None else ReadOptions(target_units, None if target_up_axis is None else target_up_axis.value).read(target)
     with progress("retargeting", total=motion.n_frames, unit="frames") as update:
         line = retarget_files(motion, source, output, target_motion, target, _names(remove), add or [], map_file,
                               method.value, iterations, lengths.value, directions.value, scale, init.value, local,
                               report, update)
     typer.echo(line)
+
+
+def drop_meshes(motion, source):
+    """``motion`` without its skinned meshes, said in a warning: retarget changes the
+    skeleton they are bound to (a target USD's own meshes are kept with its skeleton)."""
+    if not motion.meshes:
+        return motion
+    import dataclasses
+    import warnings
+
+    from usdmotion.errors import UsdMotionWarning
+
+    warnings.warn(f"{source}: skinned meshes ({', '.join(m.name for m in motion.meshes)}) left out: retarget "
+                  "changes the skeleton they are bound to", UsdMotionWarning, stacklevel=2)
+    return dataclasses.replace(motion, meshes=())

@@ -34,19 +34,26 @@ def _kind(path: Path) -> str | None:
     return None
 
 
+def _is_auto(value) -> bool:
+    return isinstance(value, str) and value.strip().lower() == "auto"
+
+
 def read_motion(path: str | os.PathLike, root_offset: str = "auto", units: str | float | None = None,
                 up_axis: str | None = None, lenient: bool = False, ignore_joint_positions: bool = False,
-                skeleton: str | os.PathLike | None = None) -> Motion:
+                skeleton: str | os.PathLike | None = None, resample: bool = False) -> Motion:
     """Read a BVH, UsdSkel, glTF 2.0 (.glb/.gltf) or Acclaim AMC file.
 
     For BVH, ``units`` (default ``"cm"``) and ``up_axis`` (default ``"Y"``) state what the
-    file does not; for USD and glTF they come from the file (glTF: metres, Y up, or the
-    source's where usdmotion wrote it) and, if given, override it. For AMC, units come from
-    the ASF unless given.
+    file does not; ``"auto"`` guesses them from the body (:mod:`usdmotion.units_guess`,
+    with a warning giving the reason). For USD and glTF they come from the file (glTF:
+    metres, Y up, or the source's where usdmotion wrote it) and, if given (not
+    ``"auto"``), override it. For AMC, units come from the ASF unless given.
     ``skeleton`` names the ASF skeleton file of ``.amc`` input (default: the one beside it, see
     :func:`usdmotion.io.amc.find_skeleton`), the Skeleton prim path of a USD stage with several
     skeletons, or the skin (index or name) of a glTF file with several; inputs that cannot take
-    it raise ``InputError``.
+    it raise ``InputError``. ``resample`` reads a USD animation's unevenly spaced time samples
+    at even steps. Whatever the format, a human skeleton whose height in the chosen units is
+    outside 0.5–3 m warns.
 
     Raises:
         InputError: anything wrong with the file, always naming it: besides the readers'
@@ -66,7 +73,7 @@ def read_motion(path: str | os.PathLike, root_offset: str = "auto", units: str |
     try:
         with warnings.catch_warnings(), np.errstate(all="warn"):
             warnings.simplefilter("error", RuntimeWarning)  # NumPy's: the input is numerically broken
-            motion = _read(path, root_offset, units, up_axis, lenient, ignore_joint_positions, skeleton)
+            motion = _read(path, root_offset, units, up_axis, lenient, ignore_joint_positions, skeleton, resample)
     except InputError:
         raise
     except (TopologyError, ValueError, RuntimeWarning, FloatingPointError, np.linalg.LinAlgError,
@@ -106,35 +113,52 @@ def check_magnitudes(motion: Motion, path: str | os.PathLike | None) -> None:
 
 
 def _read(path: Path, root_offset: str, units, up_axis, lenient: bool, ignore_joint_positions: bool,
-          skeleton: str | None) -> Motion:
+          skeleton: str | None, resample: bool) -> Motion:
+    from usdmotion.units_guess import apply_body_guess
+
     kind = _kind(path)
     if skeleton is not None:
         if kind == "bvh":
             raise InputError(path, "--skeleton does not apply to BVH input (a BVH file holds one skeleton)")
-        if kind == "usd":
-            raise InputError(path, "--skeleton: choosing a Skeleton prim of a USD stage is not supported yet")
     if kind == "bvh":
         from usdmotion.io.bvh import read_bvh
 
-        return read_bvh(path, root_offset=root_offset, units="cm" if units is None else units,
-                        up_axis=up_axis or "Y", lenient=lenient, ignore_joint_positions=ignore_joint_positions)
+        motion = read_bvh(path, root_offset=root_offset, units="cm" if units is None or _is_auto(units) else units,
+                          up_axis="Y" if up_axis is None or _is_auto(up_axis) else up_axis, lenient=lenient,
+                          ignore_joint_positions=ignore_joint_positions)
+        return apply_body_guess(motion, path, _is_auto(units), _is_auto(up_axis))
     if kind == "usd":
         from usdmotion.io.usd import read_usd
         from usdmotion.usd_diagnostics import usd_diagnostics
 
         with usd_diagnostics(path):
-            return override_units_axis(read_usd(path), units, up_axis)
+            motion = read_usd(path, skeleton=skeleton, resample=resample)
+        motion = override_units_axis(motion, None if _is_auto(units) else units, None if _is_auto(up_axis) else up_axis)
+        return apply_body_guess(motion, path, False, False)
     if kind == "gltf":
         from usdmotion.io.gltf_read import read_gltf
 
-        return override_units_axis(read_gltf(path, skin=skeleton), units, up_axis)
+        motion = override_units_axis(read_gltf(path, skin=skeleton), None if _is_auto(units) else units,
+                                     None if _is_auto(up_axis) else up_axis)
+        return apply_body_guess(motion, path, False, False)
     if kind == "amc":
         from usdmotion.io.amc import read_amc
 
-        return read_amc(path, skeleton=skeleton, units=units)
+        return apply_body_guess(read_amc(path, skeleton=skeleton, units=None if _is_auto(units) else units),
+                                path, False, False)
     if path.suffix.lower() == ".asf":
         raise InputError(path, "an .asf file holds only a skeleton: read its .amc motion (with --skeleton FILE.asf)")
     raise InputError(path, f"unknown input format {path.suffix!r} (use {READABLE})")
+
+
+def _say_meshes_dropped(motion: Motion, path: Path, why: str) -> None:
+    if motion.meshes:
+        import warnings
+
+        from usdmotion.errors import UsdMotionWarning
+
+        warnings.warn(f"{path}: the skinned meshes ({', '.join(m.name for m in motion.meshes)}) are not written: "
+                      f"{why} (write .usd/.usda/.usdc/.usdz to keep them)", UsdMotionWarning, stacklevel=3)
 
 
 def write_motion(motion: Motion, path: str | os.PathLike, **options) -> Path:
@@ -144,6 +168,7 @@ def write_motion(motion: Motion, path: str | os.PathLike, **options) -> Path:
     if kind == "bvh":
         from usdmotion.io.bvh_write import write_bvh
 
+        _say_meshes_dropped(motion, path, "BVH holds no geometry")
         return write_bvh(motion, path, **{k: v for k, v in options.items() if k in ("decimals",)})
     if kind == "usd":
         from usdmotion.io.usd import write_usd
@@ -152,5 +177,6 @@ def write_motion(motion: Motion, path: str | os.PathLike, **options) -> Path:
     if kind == "gltf":
         from usdmotion.io.gltf import write_gltf
 
+        _say_meshes_dropped(motion, path, "the glTF writer does not carry an input's skinned meshes yet")
         return write_gltf(motion, path, **{k: v for k, v in options.items() if k in ("name", "mesh", "fps", "body")})
     raise OutputError(f"{path}: unknown output format {path.suffix!r} (use {KNOWN})")

@@ -346,3 +346,14 @@ def frame_rate(frame_time_text: str) -> float:
         if round(1.0 / rate, decimals) == round(frame_time, decimals):
             return rate
     return raw
+
+
+def frame_time_text(fps: float) -> str:
+    """The ``Frame Time`` to write for ``fps``: the shortest text with 6 to 9 decimals (as
+    exporters write it: ``0.008333``, ``0.008342``) that :func:`frame_rate` reads back as
+    exactly ``fps``, so a file's frame time survives a round trip as read; else ``%.10g``."""
+    for decimals in range(6, 10):
+        text = f"{1.0 / fps:.{decimals}f}"
+        if float(text) > 0 and frame_rate(text) == fps:
+            return text
+    return f"{1.0 / fps:.10g}"

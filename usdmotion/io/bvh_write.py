@@ -14,6 +14,7 @@ import numpy as np
 
 from usdmotion.channels import channel_columns, default_channels, euler_columns, rotation_order
 from usdmotion.io.atomic import atomic_output
+from usdmotion.io.bvh_header import frame_time_text
 from usdmotion.motion import POSITION_CHANNELS, ROTATION_CHANNELS, Motion
 from usdmotion.rotations import quat_to_euler
 
@@ -119,7 +120,7 @@ def bvh_text(motion: Motion, decimals: int = 9) -> str:
         open_stack.pop()
         lines.append("  " * len(open_stack) + "}")
     values = channel_values(motion, channels)[:, column_order]
-    lines += ["MOTION", f"Frames: {motion.n_frames}", f"Frame Time: {1.0 / motion.fps:.10g}"]
+    lines += ["MOTION", f"Frames: {motion.n_frames}", f"Frame Time: {frame_time_text(motion.fps)}"]
     return "\n".join(lines) + "\n" + _rows_text(np.round(values, decimals) + 0.0)
 
 

@@ -23,17 +23,16 @@ from __future__ import annotations
 import os
 import shutil
 import tempfile
-import warnings
 from pathlib import Path
 
 import numpy as np
 
-from usdmotion.errors import OutputError, UsdMotionWarning, UsdReadError
+from usdmotion.errors import OutputError, UsdReadError
 from usdmotion.io.atomic import atomic_output
 from usdmotion.usd_diagnostics import usd_error_message
 from usdmotion.kinematics import compose_transforms, rest_pose
 from usdmotion.motion import Motion
-from usdmotion.rotations import matrix_to_quat, quat_mul, quat_rotate, wxyz_to_xyzw
+from usdmotion.rotations import wxyz_to_xyzw
 
 USD_EXTENSIONS = (".usd", ".usda", ".usdc", ".usdz")
 CUSTOM_KEY = "usdmotion"
@@ -183,8 +182,15 @@ def write_usd(motion: Motion, path: str | os.PathLike, name: str | None = None,
         try:
             stage = Usd.Stage.CreateNew(str(layer_path))
             skel = define_skeleton(stage, motion, root_path)
+            if motion.meshes:
+                from usdmotion.io.usd_skin import add_skinned_meshes
+
+                add_skinned_meshes(stage, skel, motion, path)
             if decorate is not None:
                 decorate(stage, skel)
+            from usdmotion.io.usd_ar import finish_stage
+
+            finish_stage(stage, skel, motion)
             stage.GetRootLayer().Save()
             del stage
             if ext == ".usdz":
@@ -195,6 +201,8 @@ def write_usd(motion: Motion, path: str | os.PathLike, name: str | None = None,
         finally:
             if scratch is not None:
                 shutil.rmtree(scratch, ignore_errors=True)
+    if ext == ".usdz":
+        _warn_unless_ar_ready(path)
     return path
 
 
@@ -206,6 +214,18 @@ def _check_float32(motion: Motion, path: Path) -> None:
         if a is not None and a.size and not -limit <= a.min() <= a.max() <= limit:
             raise OutputError(f"{path}: {name} hold values beyond USD's float32 range (±{limit:.3g}) or NaN; "
                               "nothing written")
+
+
+def _warn_unless_ar_ready(path: Path) -> None:
+    import warnings
+
+    from usdmotion.errors import UsdMotionWarning
+    from usdmotion.io.usd_ar import ar_quick_look_problems
+
+    problems = ar_quick_look_problems(path)
+    if problems:
+        warnings.warn(f"{path}: not AR Quick Look compliant: {'; '.join(problems[:3])}"
+                      f"{' …' if len(problems) > 3 else ''}", UsdMotionWarning, stacklevel=3)
 
 
 def validate_stage(stage) -> list[str]:
@@ -239,109 +259,16 @@ def _open_stage(path: Path):
     return stage
 
 
-def _find_skeleton(stage, path: Path):
-    from pxr import Usd, UsdSkel
+def read_usd(path: str | os.PathLike, skeleton: str | None = None, resample: bool = False) -> Motion:
+    """Read one UsdSkel skeleton of a stage (ours or a DCC tool's) into a :class:`Motion`.
 
-    default = stage.GetDefaultPrim()
-    roots = [default] if default and default.IsValid() else []
-    roots.append(stage.GetPseudoRoot())
-    for start in roots:
-        for prim in Usd.PrimRange(start):
-            if prim.IsA(UsdSkel.Skeleton):
-                return UsdSkel.Skeleton(prim)
-    raise UsdReadError(path, "no UsdSkel Skeleton in the stage")
-
-
-def _decompose(local: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
-    """Column-vector ``(..., 4, 4)`` → ``(rotation wxyz (..., 4), translation (..., 3), max |scale-1|)``."""
-    linear = local[..., :3, :3]
-    scale = np.linalg.norm(linear, axis=-2)
-    safe = np.where(scale > 0, scale, 1.0)
-    rotation = matrix_to_quat(linear / safe[..., None, :])
-    return rotation, local[..., :3, 3], float(np.max(np.abs(scale - 1.0), initial=0.0))
-
-
-def read_usd(path: str | os.PathLike) -> Motion:
-    """Read the first UsdSkel skeleton of a stage (ours or a DCC tool's) into a :class:`Motion`.
-
-    Local joint transforms come from ``UsdSkel.SkeletonQuery`` (animation where authored,
-    rest transforms elsewhere); the skeleton prim's own world transform is folded into
-    the root so world positions match ``ComputeJointWorldTransforms``. Positions are in
-    stage units.
+    Joint world positions equal usd-core's ``ComputeJointWorldTransforms`` (ancestor
+    transforms, uniform scale included, fold into the root); the frame rate comes from
+    the sample spacing and ``timeCodesPerSecond``. ``skeleton``: the Skeleton prim path
+    when the stage has several; ``resample``: read unevenly spaced samples at even steps.
+    Positions are in stage units. See :mod:`usdmotion.io.usd_read`.
     """
-    from pxr import Usd, UsdGeom, UsdSkel
+    from usdmotion.io.usd_read import read_usd_skeleton
 
     path = Path(path)
-    stage = _open_stage(path)
-    skel = _find_skeleton(stage, path)
-    cache = UsdSkel.Cache()
-    query = cache.GetSkelQuery(skel)
-    if not query:
-        raise UsdReadError(path, f"skeleton {skel.GetPath()} is invalid (joints, rest transforms?)")
-    topology = query.GetTopology()
-    ok, reason = topology.Validate()
-    if not ok:
-        raise UsdReadError(path, f"skeleton {skel.GetPath()}: {reason}")
-    parents = np.asarray(topology.GetParentIndices(), dtype=np.int64)
-    tokens = [str(t) for t in query.GetJointOrder()]
-    if np.count_nonzero(parents < 0) != 1 or parents[0] != -1:
-        raise UsdReadError(path, f"skeleton {skel.GetPath()} has {np.count_nonzero(parents < 0)} root joints; "
-                                 "exactly one is supported")
-    custom = dict(skel.GetPrim().GetCustomDataByKey(CUSTOM_KEY) or {})
-    names = _joint_names(skel, tokens, custom)
-
-    anim_query = query.GetAnimQuery()
-    times = list(anim_query.GetJointTransformTimeSamples()) if anim_query else []
-    if not times:
-        times = [Usd.TimeCode.Default()]
-    local = np.stack([np.array(query.ComputeJointLocalTransforms(t)) for t in times])  # per time sample
-    local = np.swapaxes(local, -1, -2)  # row-vector → column-vector
-    rotations, translations, scale_error = _decompose(local)
-    if scale_error > 1e-4:
-        warnings.warn(f"{path}: joint scales (up to {1 + scale_error:.4g}) are ignored", UsdMotionWarning,
-                      stacklevel=2)
-    rest = np.swapaxes(np.array(query.ComputeJointLocalTransforms(Usd.TimeCode.Default(), True)), -1, -2)
-    offsets = rest[:, :3, 3].copy()
-
-    skel_world = np.stack([np.array(UsdGeom.XformCache(t).GetLocalToWorldTransform(skel.GetPrim())).T
-                           for t in times])
-    skel_q, skel_t, skel_scale = _decompose(skel_world)
-    if skel_scale > 1e-4:
-        warnings.warn(f"{path}: the skeleton prim's scale is ignored", UsdMotionWarning, stacklevel=2)
-    rotations[:, 0] = quat_mul(skel_q, rotations[:, 0])
-    translations[:, 0] = skel_t + quat_rotate(skel_q, translations[:, 0])
-
-    moving = np.abs(translations[:, 1:] - offsets[None, 1:]).max(initial=0.0) > 1e-5 * max(
-        1.0, float(np.abs(offsets).max(initial=0.0)))
-    fps = float(stage.GetTimeCodesPerSecond() or 24.0)
-    end_sites = np.zeros(len(names), bool)
-    end_sites[[int(j) for j in custom.get("endSites", []) if 0 <= int(j) < len(names)]] = True
-    channels = custom.get("channels")
-    channels = tuple(tuple(c.split()) for c in channels) if channels is not None and len(channels) == len(names) else None
-    return Motion(
-        joint_names=names,
-        parents=parents,
-        offsets=offsets,
-        rotations=rotations,
-        root_translation=translations[:, 0],
-        fps=fps,
-        joint_translations=translations if moving else None,
-        end_sites=end_sites,
-        meters_per_unit=float(UsdGeom.GetStageMetersPerUnit(stage)),
-        up_axis="Z" if UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.z else "Y",
-        channels=channels,
-        root_offset="add" if custom.get("rootOffset") == "add" else "replace",
-    )
-
-
-def _joint_names(skel, tokens: list[str], custom: dict) -> tuple[str, ...]:
-    stored = custom.get("jointNames")
-    if stored is not None and len(stored) == len(tokens) and len(set(stored)) == len(stored):
-        return tuple(str(n) for n in stored)
-    names_attr = skel.GetJointNamesAttr().Get()
-    if names_attr is not None and len(names_attr) == len(tokens) and len(set(names_attr)) == len(names_attr):
-        return tuple(str(n) for n in names_attr)
-    leaves = [t.rsplit("/", 1)[-1] for t in tokens]
-    if len(set(leaves)) == len(leaves):
-        return tuple(leaves)
-    return tuple(tokens)
+    return read_usd_skeleton(_open_stage(path), path, skeleton=skeleton, resample=resample)

@@ -48,6 +48,7 @@ class RenderOptions:
     msaa: int = 0
     quality: int = 20
     body_resolution: int = 96
+    body: str = "auto"  # "stage": the input's own skinned meshes, "generated": usdmotion.skin.build_body, "auto": stage if any
     labels: tuple[str, str] = ("", "")
     angles: tuple[str, ...] = ()
     align: str = "start"
@@ -115,6 +116,8 @@ def check_options(options: RenderOptions) -> None:
     """Refuse any option out of range before work starts (raises ``UsdMotionError``)."""
     if options.style not in STYLES:
         raise UsdMotionError(f"unknown style {options.style!r} (use {', '.join(STYLES)})")
+    if options.body not in ("auto", "stage", "generated"):
+        raise UsdMotionError(f"--body must be auto, stage or generated, got {options.body!r}")
     if options.compare_mode not in COMPARE_MODES:
         raise UsdMotionError(f"unknown compare mode {options.compare_mode!r} (use {', '.join(COMPARE_MODES)})")
     if not (16 <= options.width <= 8192 and 16 <= options.height <= 8192):

@@ -20,11 +20,27 @@ from usdmotion.skin import body_size, build_body, centre_of_mass, lbs, skinning_
 _UP_Z = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 
 
+def choose_body(motion: Motion, which: str, resolution: int):
+    """The body to draw: the input's own skinned meshes (``"stage"``; ``"auto"`` when it has
+    any) or the generated one (``"generated"``; ``"auto"`` otherwise)."""
+    if which not in ("auto", "stage", "generated"):
+        raise UsdMotionError(f"--body must be auto, stage or generated, got {which!r}")
+    if which != "generated" and motion.meshes:
+        from usdmotion.skin_stage import stage_body
+
+        body = stage_body(motion)
+        if body is not None:
+            return body
+    if which == "stage":
+        raise UsdMotionError("--body stage: the input has no skinned mesh that fits its skeleton")
+    return build_body(motion, resolution=resolution)
+
+
 class Actor:
     """One motion's body and/or stick figure, skinned a chunk of frames at a time."""
 
     def __init__(self, motion: Motion, frames: np.ndarray, style: str, resolution: int, ghost: bool,
-                 alignment=None):
+                 alignment=None, body: str = "auto"):
         self.motion, self.frames = motion, frames
         self.local_t = local_translations(motion)
         self.turn = (_UP_Z if motion.up_axis == "Z" else np.eye(3)) * 1.0
@@ -36,7 +52,7 @@ class Actor:
         self.nodes = []
         self.inset = 0.0
         if style in ("body", "both"):
-            self.body = build_body(motion, resolution=resolution)
+            self.body = choose_body(motion, body, resolution)
             color = COLORS["ghost"] if ghost else COLORS["body"]
             # the ghost sits 1 % of the body size inside its own surface: where both motions
             # agree the opaque main body hides it, so it shows only where they differ
@@ -86,7 +102,8 @@ class Views:
         pyrender = import_pyrender()
         self.plan, self.options = plan, options
         self.side = other is not None and options.compare_mode == "side"
-        self.actors = [Actor(motion, plan.frames, options.style, options.body_resolution, ghost=False)]
+        self.actors = [Actor(motion, plan.frames, options.style, options.body_resolution, ghost=False,
+                             body=options.body)]
         if other is not None:
             self.actors.append(Actor(other, plan.other_frames, options.style, options.body_resolution,
                                      ghost=not self.side, alignment=plan.alignment))

@@ -131,6 +131,14 @@ def _range(values: np.ndarray) -> dict:
             "range": round(float(np.ptp(values)), 4)}
 
 
+def angle_range(degrees: np.ndarray) -> dict:
+    """:func:`_range` of an angle series ``(F,)`` in degrees, unwrapped first: a joint
+    swinging from 170° to -170° (through 180°) has a 20° range, not 340°. The series is
+    shifted by whole turns so its median lies in [-180°, 180°]."""
+    unwrapped = np.unwrap(np.asarray(degrees, np.float64), period=360.0)
+    return _range(unwrapped - 360.0 * np.round(np.median(unwrapped) / 360.0))
+
+
 def joint_summary(kin: Kinematics, j: int) -> dict:
     """Peaks and ranges of one joint (see :func:`summary`)."""
     speed = np.linalg.norm(kin.velocities[:, j], axis=1)
@@ -145,7 +153,7 @@ def joint_summary(kin: Kinematics, j: int) -> dict:
     if not kin.end_sites[j]:
         order = kin.euler_orders[j]
         out["peak_relative_angular_speed"] = _peak(np.linalg.norm(kin.omega_rel[:, j], axis=1), kin)
-        out["range_of_motion"] = {"euler_order": order, **{axis: _range(kin.euler[:, j, "xyz".index(axis)])
+        out["range_of_motion"] = {"euler_order": order, **{axis: angle_range(kin.euler[:, j, "xyz".index(axis)])
                                                            for axis in AXES}}
     bend = kin.bend[:, j]
     if np.all(np.isfinite(bend)):

@@ -1,0 +1,79 @@
+"""``--units auto`` / ``--up-axis auto`` and the implausible-height warning (issue 15 item 8).
+
+The expectations are independent of the guesser: units the data README states, and
+copies of a real take rescaled or turned Z-up here by exact transforms."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from usdmotion.constants import METERS_PER_UNIT
+from usdmotion.io import read_motion
+from usdmotion.io.bvh import read_bvh
+from usdmotion.kinematics import joint_positions
+from usdmotion.rotations import axis_angle_quat, quat_mul, quat_rotate
+from usdmotion.units_guess import guess_body, implausible_height
+
+WALK = "cmu/cgspeed_12_01_walk.bvh"          # README: CMU ASF units, Y-up
+ZUP = "edge_cases/pybvh_bvh_example_mixed_orders_zup.bvh"  # README: inch-scale, Z-up
+CM = "other_rigs/wspr_louise_optitrack_arena.bvh"          # README: cm, Y-up
+
+
+def _scaled(motion, factor):
+    jt = None if motion.joint_translations is None else motion.joint_translations * factor
+    return dataclasses.replace(motion, offsets=motion.offsets * factor, root_translation=motion.root_translation * factor,
+                               joint_translations=jt, source_channels=None)
+
+
+def _z_up(motion):
+    """The same take turned Y-up → Z-up: +90° about X applied to the root (exact)."""
+    turn = axis_angle_quat("X", np.pi / 2)
+    rotations = np.array(motion.rotations)
+    rotations[:, 0] = quat_mul(turn, rotations[:, 0])
+    return dataclasses.replace(motion, rotations=rotations, root_translation=quat_rotate(turn, motion.root_translation),
+                               source_channels=None)
+
+
+def test_guesses_match_the_data_readme(shared_file):
+    for name, units, up in ((WALK, "asf", "Y"), (ZUP, "in", "Z"), (CM, "cm", "Y")):
+        guess = guess_body(read_bvh(shared_file(name)))
+        assert (guess.units, guess.up_axis) == (units, up), (name, guess)
+
+
+@pytest.mark.parametrize(("factor", "units"), [(METERS_PER_UNIT["asf"], "m"), (METERS_PER_UNIT["asf"] / 0.01, "cm"),
+                                               (METERS_PER_UNIT["asf"] / 0.001, "mm")])
+def test_a_rescaled_take_is_guessed_in_its_new_unit(shared_file, factor, units):
+    guess = guess_body(_scaled(read_bvh(shared_file(WALK)), factor))
+    assert guess.units == units, guess.units_reason
+
+
+def test_a_take_turned_z_up_is_guessed_z_up(shared_file):
+    motion = _z_up(read_bvh(shared_file(CM)))
+    heads = joint_positions(motion)[:, motion.joint_index("Head")]
+    assert np.median(heads[:, 2]) > np.median(np.abs(heads[:, 1]))  # really stands along Z now
+    assert guess_body(motion).up_axis == "Z"
+
+
+def test_read_motion_auto_states_the_guess_and_its_reason(shared_file):
+    with pytest.warns(UserWarning) as record:
+        motion = read_motion(shared_file(ZUP), units="auto", up_axis="auto")
+    text = "\n".join(str(w.message) for w in record)
+    assert motion.meters_per_unit == METERS_PER_UNIT["in"] and motion.up_axis == "Z"
+    assert "--units auto: in (the ankle-to-head chain is" in text and "--up-axis auto: Z (the head" in text
+    assert "IMPLAUSIBLE" not in text
+
+
+def test_implausible_units_warn_loudly(shared_file):
+    with pytest.warns(UserWarning, match=r"IMPLAUSIBLE UNITS: at 0.01 m per unit this person is 0.2\d m tall.*"
+                                         r"--units asf"):
+        read_motion(shared_file(WALK))  # CMU units read as cm: a 26 cm person
+    assert implausible_height(read_bvh(shared_file(CM))) is None
+
+
+def test_no_guess_for_a_non_human_skeleton_keeps_the_defaults(shared_file):
+    with pytest.warns(UserWarning, match="no guess, keeping 0.01 m per unit"):
+        motion = read_motion(shared_file("edge_cases/fairmotion_sinusoidal_no_end_site.bvh"), units="auto")
+    assert motion.meters_per_unit == 0.01

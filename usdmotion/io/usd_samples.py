@@ -1,0 +1,165 @@
+"""A ``SkelAnimation``'s time samples read in bulk and checked: ``(T, J, 4)`` rotations and
+``(T, J, 3)`` translations over every frame, one NumPy array per attribute.
+
+Each time sample is copied straight from its ``Vt`` array into a preallocated float32
+array through the buffer protocol (no per-joint or per-value Python objects); an
+attribute without time samples is read once and broadcast. Times are stage time codes
+(USD has already applied layer offsets and scales), so the frame rate is
+``timeCodesPerSecond / spacing``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from usdmotion.errors import UsdReadError
+
+SPACING_TOL = 1e-6   # relative: sample spacings this close to the median count as even
+UNIT_TOL = 1e-2      # |‖q‖ - 1| beyond this is a corrupt rotation, not float rounding
+
+
+def stage_rate(stage, path: Path) -> float:
+    """The stage's ``timeCodesPerSecond``, checked positive and finite."""
+    tcps = float(stage.GetTimeCodesPerSecond())
+    if not (np.isfinite(tcps) and tcps > 0):
+        raise UsdReadError(path, f"timeCodesPerSecond must be a positive number, the stage says {tcps}")
+    return tcps
+
+
+def frame_times(anim, path: Path, resample: bool = False) -> tuple[np.ndarray, float]:
+    """``(times (T,), step)``: the stage time codes to read as frames and their spacing.
+
+    ``times`` is the union of the animation's time samples (empty: one frame from the
+    default values); ``step`` the spacing in time codes (1 for fewer than 2 samples).
+    Uneven spacing raises :class:`UsdReadError`, or with ``resample`` is replaced by
+    even steps of the median spacing over the same range (USD interpolates).
+    """
+    if anim is None:
+        return np.zeros(0), 1.0
+    attrs = (anim.GetRotationsAttr(), anim.GetTranslationsAttr(), anim.GetScalesAttr())
+    times = np.unique(np.concatenate([np.asarray(a.GetTimeSamples(), np.float64) for a in attrs]))
+    if times.size < 2:
+        return times, 1.0
+    steps = np.diff(times)
+    step = float(np.median(steps))
+    uneven = np.abs(steps - step) > SPACING_TOL * step
+    if not uneven.any():
+        return times, step
+    if not resample:
+        k = int(np.flatnonzero(uneven)[0])
+        raise UsdReadError(path, f"{anim.GetPath()}: time samples are unevenly spaced (step {steps[k]:.6g} at time "
+                                 f"{times[k]:.6g}, usually {step:.6g}); resample the animation evenly, or read it "
+                                 "with --resample (USD's interpolation at the usual step)")
+    count = int(np.floor((times[-1] - times[0]) / step + 1e-9)) + 1
+    return times[0] + step * np.arange(count), step
+
+
+def read_samples(attr, times: np.ndarray, n: int, width: int, path: Path) -> np.ndarray:
+    """``attr`` at every time in ``times`` as float32 ``(max(T, 1), n, width)``, checked for
+    length and finiteness; read once and broadcast when it has no time samples."""
+    where = str(attr.GetPath())
+    if attr.GetNumTimeSamples() == 0 or times.size == 0:
+        out = _rows(attr.Get(), n, width, path, where, None)
+        return np.broadcast_to(out, (max(times.size, 1), n, width))
+    from pxr import Usd
+
+    out = np.empty((times.size, n, width), np.float32)
+    query, t = Usd.AttributeQuery(attr), None
+    try:
+        for i, t in enumerate(times.tolist()):
+            value = query.Get(t)
+            if value is None or len(value) != n:
+                raise UsdReadError(path, f"{where} at time {t:g} has {0 if value is None else len(value)} "
+                                         f"values for {n} joints")
+            out[i] = value
+    except (ValueError, TypeError) as exc:
+        raise UsdReadError(path, f"{where} at time {t:g} is not an array of {width}-vectors ({exc})") from None
+    _check_finite(out, path, where, times)
+    return out
+
+
+def _rows(value, n: int, width: int, path: Path, where: str, t) -> np.ndarray:
+    if value is None or len(value) != n:
+        raise UsdReadError(path, f"{where} has {0 if value is None else len(value)} values for {n} joints")
+    try:
+        out = np.array(value, np.float32).reshape(n, width)
+    except (ValueError, TypeError) as exc:
+        raise UsdReadError(path, f"{where} is not an array of {width}-vectors ({exc})") from None
+    _check_finite(out[None], path, where, np.zeros(1))
+    return out
+
+
+def _check_finite(values: np.ndarray, path: Path, where: str, times: np.ndarray) -> None:
+    bad = ~np.isfinite(values).all(axis=-1)
+    if bad.any():
+        f, j = np.argwhere(bad)[0]
+        at = f" at time {times[f]:g}" if times.size else ""
+        raise UsdReadError(path, f"{where}{at}: value {j} is not finite")
+
+
+def animation_arrays(anim, tokens: list[str], times: np.ndarray, rest_rotations: np.ndarray,
+                     rest_translations: np.ndarray, path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """Local ``(rotations wxyz (T, J, 4), translations (T, J, 3))`` float64 of the skeleton
+    joints ``tokens`` over ``times``: the animation's values where it animates a joint,
+    the rest transform (``rest_rotations (J, 4)``, ``rest_translations (J, 3)``) elsewhere.
+
+    An animation without rotations or translations, or with arrays whose length is not
+    its joint count, non-finite values or rotations far from unit length, is refused.
+    """
+    n_frames, n_joints = max(times.size, 1), len(tokens)
+    if anim is None:
+        return (np.broadcast_to(rest_rotations, (n_frames, n_joints, 4)).copy(),
+                np.broadcast_to(rest_translations, (n_frames, n_joints, 3)).copy())
+    anim_joints = anim.GetJointsAttr().Get()
+    if anim_joints is None or len(anim_joints) == 0:
+        raise UsdReadError(path, f"{anim.GetPath()}: the SkelAnimation names no joints")
+    index = {t: j for j, t in enumerate(tokens)}
+    pairs = [(a, index[str(t)]) for a, t in enumerate(anim_joints) if str(t) in index]
+    if not pairs:
+        raise UsdReadError(path, f"{anim.GetPath()}: none of its joints is a joint of the skeleton")
+    src, dst = (np.array(x, np.int64) for x in zip(*pairs))
+    same_order = len(pairs) == n_joints == len(anim_joints) and np.array_equal(src, dst)
+    for attr, name in ((anim.GetRotationsAttr(), "rotations"), (anim.GetTranslationsAttr(), "translations")):
+        if not attr.HasValue():
+            raise UsdReadError(path, f"{anim.GetPath()}: the SkelAnimation has no {name} "
+                                     "(usd-core would show the rest pose)")
+    quats = read_samples(anim.GetRotationsAttr(), times, len(anim_joints), 4, path)
+    quats = quats if same_order else quats[:, src]
+    norms = np.sqrt(np.einsum("...i,...i->...", quats, quats, dtype=np.float64))
+    bad = np.abs(norms - 1.0) > UNIT_TOL
+    if bad.any():
+        f, j = np.argwhere(bad)[0]
+        at = f" at time {times[f]:g}" if times.size else ""
+        raise UsdReadError(path, f"{anim.GetRotationsAttr().GetPath()}{at}: rotation of joint "
+                                 f"{anim_joints[int(src[j])]} has length {norms[f, j]:.6g}, not a unit quaternion")
+    wxyz = np.empty(quats.shape, np.float64)  # (x, y, z, w) → (w, x, y, z) in one pass
+    wxyz[..., 0], wxyz[..., 1:] = quats[..., 3], quats[..., :3]
+    if np.abs(norms - 1.0).max(initial=0.0) > 1e-6:
+        wxyz /= norms[..., None]
+    shifts = read_samples(anim.GetTranslationsAttr(), times, len(anim_joints), 3, path)
+    if same_order:
+        rotations, translations = wxyz, shifts.astype(np.float64)
+    else:
+        rotations = np.broadcast_to(rest_rotations, (n_frames, n_joints, 4)).copy()
+        translations = np.broadcast_to(rest_translations, (n_frames, n_joints, 3)).copy()
+        rotations[:, dst] = wxyz
+        translations[:, dst] = shifts[:, src]
+    _check_scales(anim, times, len(anim_joints), path)
+    return rotations, translations
+
+
+def _check_scales(anim, times: np.ndarray, n: int, path: Path) -> None:
+    import warnings
+
+    from usdmotion.errors import UsdMotionWarning
+
+    attr = anim.GetScalesAttr()
+    if not attr.HasValue():
+        return
+    scales = read_samples(attr, times, n, 3, path)
+    worst = float(np.abs(scales - 1.0).max(initial=0.0))
+    if worst > 1e-3:
+        warnings.warn(f"{path}: {attr.GetPath()}: joint scales (up to {1 + worst:.4g}) are ignored",
+                      UsdMotionWarning, stacklevel=5)
