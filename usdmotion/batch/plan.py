@@ -43,7 +43,19 @@ class Job:
     @property
     def options_key(self) -> str:
         """The options that shape the outputs, as canonical JSON (a changed option redoes the take)."""
-        return json.dumps({"read": self.read_options, "params": self.params}, sort_keys=True, default=str)
+        return json.dumps({"read": _non_default_read_options(self.read_options), "params": self.params},
+                          sort_keys=True, default=str)
+
+
+def _non_default_read_options(read_options: dict) -> dict:
+    """``read_options`` less those equal to ``read_motion``'s defaults (stated or not, the take reads alike)."""
+    import inspect
+
+    from usdmotion.io import read_motion
+
+    defaults = {name: p.default for name, p in inspect.signature(read_motion).parameters.items()
+                if p.default is not inspect.Parameter.empty}
+    return {k: v for k, v in read_options.items() if k not in defaults or defaults[k] != v}
 
 
 def take_id(relpath: str) -> str:

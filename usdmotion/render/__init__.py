@@ -136,11 +136,23 @@ def check_options(options: RenderOptions) -> None:
         raise UsdMotionError(f"body resolution must be in 4..1024, got {options.body_resolution}")
     from usdmotion.render.camera import check_camera
 
-    check_camera(options.camera)
+    for name in camera_names(options):
+        check_camera(name)
     for name, value in (("start", options.start), ("stop", options.end)):
         if value is not None and value < 0:
             raise UsdMotionError(f"--frames: {name} {value} is negative; frames count from 0 "
                                  "(no Python-style negative indices)")
+
+
+def camera_names(options: RenderOptions) -> list[str]:
+    """The ``--camera`` names, one per view of ``--layout`` (row by row); ``UsdMotionError`` when the counts differ."""
+    rows, cols = parse_layout(options.layout)
+    names = [c.strip() for c in options.camera.split(",")] if "," in options.camera else [options.camera]
+    if len(names) != rows * cols:
+        raise UsdMotionError(f"--layout {rows}x{cols} needs {rows * cols} cameras (--camera side,front,top,follow), "
+                             f"got {len(names)}" if options.layout else
+                             "several cameras need --layout (e.g. --layout 2x2 --camera side,front,top,follow)")
+    return names
 
 
 def render_joints(motion: Motion, frames: np.ndarray) -> np.ndarray:
@@ -191,11 +203,7 @@ def plan_render(motion: Motion, options: RenderOptions, other: Motion | None = N
 
         strip = strip_height(options.height, len(parse_panel(options.panel)))
     rows, cols = parse_layout(options.layout)
-    names = [c.strip() for c in options.camera.split(",")] if "," in options.camera else [options.camera]
-    if len(names) != rows * cols:
-        raise UsdMotionError(f"--layout {rows}x{cols} needs {rows * cols} cameras (--camera side,front,top,follow), "
-                             f"got {len(names)}" if options.layout else
-                             "several cameras need --layout (e.g. --layout 2x2 --camera side,front,top,follow)")
+    names = camera_names(options)
     if options.layout and side:
         raise UsdMotionError("--layout and --compare-mode side cannot be combined (use the ghost)")
     panel = (options.width // 2 if side else options.width // cols, (options.height - strip) // rows)
