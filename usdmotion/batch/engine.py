@@ -105,10 +105,14 @@ def run_jobs(client, jobs: Iterable[Job]) -> Iterator[dict]:
         for future in as_completed(futures):
             job = futures.pop(future)
             try:
-                yield future.result()
+                row = future.result()
             except Exception as exc:  # noqa: BLE001 - KilledWorker, lost scheduler: an error row
-                yield _failed_row(job, exc)
+                row = _failed_row(job, exc)
+            # released before the row is handed on: a worker lost afterwards holds nothing this
+            # client still wants, so the scheduler never recomputes (and rewrites) a finished take
             future.release()
+            del future
+            yield row
     finally:
         for future in futures:
             future.cancel()
