@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 from dataclasses import dataclass, field
@@ -19,6 +20,14 @@ DEFAULT_READ_OPTIONS = {"units": None, "up_axis": None, "root_offset": "auto", "
 #: Per-operation parameters a job starts from.
 DEFAULT_PARAMS = {"convert": {"to": "usdc", "mesh": False}, "analyze": {}, "segment": {"export_clips": False},
                   "retarget": {"to": "usdc"}, "render": {"size": [640, 360]}}
+#: Source bytes one Dask task should hold per operation: several short takes share a task (about
+#: 0.2–0.4 s of work on one core for the 150 kB, 160-frame BVH takes of ``benchmarks/batch.py``), so
+#: the scheduler, the client and the worker's event loop handle tens of tasks, not thousands.
+#: ``0``: one take per task (the operations whose takes take seconds).
+TASK_BYTES = {"convert": 4 << 20, "analyze": 1 << 20, "segment": 1 << 20, "retarget": 0, "render": 0}
+#: Tasks per worker slot at least (when there are takes enough): the last tasks stay short, so no
+#: worker idles long at the end, and a lost worker loses little.
+TASKS_PER_SLOT = 4
 FRAMES_DIR = "frames"
 CATALOGUE = "catalogue.parquet"
 
@@ -49,13 +58,18 @@ class Job:
 
 def _non_default_read_options(read_options: dict) -> dict:
     """``read_options`` less those equal to ``read_motion``'s defaults (stated or not, the take reads alike)."""
+    defaults = _read_motion_defaults()
+    return {k: v for k, v in read_options.items() if k not in defaults or defaults[k] != v}
+
+
+@functools.cache
+def _read_motion_defaults() -> dict:
     import inspect
 
     from usdmotion.io import read_motion
 
-    defaults = {name: p.default for name, p in inspect.signature(read_motion).parameters.items()
-                if p.default is not inspect.Parameter.empty}
-    return {k: v for k, v in read_options.items() if k not in defaults or defaults[k] != v}
+    return {name: p.default for name, p in inspect.signature(read_motion).parameters.items()
+            if p.default is not inspect.Parameter.empty}
 
 
 def take_id(relpath: str) -> str:
@@ -122,3 +136,36 @@ def up_to_date(job: Job, previous: dict | None) -> bool:
         return all(os.stat(p).st_mtime >= source_mtime for p in job.outputs.values())
     except OSError:
         return False
+
+
+def group_jobs(jobs: list[Job], slots: int, task_bytes: int) -> list[tuple[Job, ...]]:
+    """Consecutive groups of ``jobs`` (one Dask task each) of about ``task_bytes`` source bytes.
+
+    There are at least ``TASKS_PER_SLOT * slots`` groups when there are that many jobs
+    (``slots``: the cluster's worker threads); ``task_bytes <= 0`` gives one job per group.
+    Groups keep the jobs' order (neighbouring takes of one session share a group).
+    """
+    if not jobs:
+        return []
+    if task_bytes <= 0:
+        return [(job,) for job in jobs]
+    sizes = [_size(job.source) for job in jobs]
+    total = sum(sizes)
+    count = min(len(jobs), max(-(-total // task_bytes), TASKS_PER_SLOT * max(1, slots)))
+    groups, current, filled = [], [], 0
+    for job, size in zip(jobs, sizes):
+        current.append(job)
+        filled += size
+        if filled * count >= total * (len(groups) + 1) and len(groups) < count - 1:
+            groups.append(tuple(current))
+            current = []
+    if current:
+        groups.append(tuple(current))
+    return groups
+
+
+def _size(path: str) -> int:
+    try:
+        return os.stat(path).st_size
+    except OSError:
+        return 0

@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from usdmotion.batch.catalogue import read_catalogue, write_catalogue
-from usdmotion.batch.plan import CATALOGUE, DEFAULT_INCLUDE, plan_jobs, up_to_date
+from usdmotion.batch.plan import CATALOGUE, DEFAULT_INCLUDE, TASK_BYTES, plan_jobs, up_to_date
 
 #: Seconds between catalogue saves during a run (a killed client loses at most this much).
 SAVE_EVERY_S = 10.0
@@ -45,13 +45,15 @@ def run_batch(operation: str, src_dir: str | Path, out_dir: str | Path, read_opt
               params: dict | None = None, include: tuple[str, ...] = DEFAULT_INCLUDE, force: bool = False,
               workers: int | None = None, scheduler: str | None = None, client=None,
               on_start: Callable[[int], None] | None = None,
-              on_row: Callable[[dict], None] | None = None) -> BatchResult:
+              on_row: Callable[[dict], None] | None = None, task_bytes: int | None = None) -> BatchResult:
     """Run ``operation`` on every take under ``src_dir``; outputs and ``catalogue.parquet`` in ``out_dir``.
 
     Takes whose catalogue row is ok (same options) and whose outputs are newer than the
     source are skipped unless ``force``. ``on_start(n)`` is told how many takes will run,
     ``on_row(row)`` gets each finished row. ``client``: an open ``distributed.Client`` to
-    use instead of starting a cluster (``workers``/``scheduler`` are then ignored). The
+    use instead of starting a cluster (``workers``/``scheduler`` are then ignored).
+    ``task_bytes``: source bytes per Dask task (default :data:`~usdmotion.batch.plan.TASK_BYTES`
+    of the operation; ``0``: one take per task). The
     catalogue is saved every :data:`SAVE_EVERY_S` seconds, at the end, and on Ctrl-C
     (atomically each time).
     """
@@ -72,7 +74,7 @@ def run_batch(operation: str, src_dir: str | Path, out_dir: str | Path, read_opt
             saved = time.perf_counter()
             try:
                 warm_up(dask, operation)
-                for row in run_jobs(dask, todo):
+                for row in run_jobs(dask, todo, TASK_BYTES[operation] if task_bytes is None else task_bytes):
                     rows[(row["operation"], row["take"])] = row
                     result.rows.append(row)
                     if on_row is not None:

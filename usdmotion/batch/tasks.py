@@ -18,6 +18,16 @@ from pathlib import Path
 from usdmotion.batch.plan import Job
 
 
+def run_group(jobs: tuple[Job, ...]) -> list[dict]:
+    """Process several takes one after another in one Dask task; one catalogue row each.
+
+    Temporaries that a killed worker left for these takes' outputs are removed first (the
+    takes are being redone, so nothing else writes them).
+    """
+    _remove_stale_temporaries(jobs)
+    return [run_job(job) for job in jobs]
+
+
 def run_job(job: Job) -> dict:
     """Process one take; return its catalogue row (never raises for bad input)."""
     from usdmotion.errors import UsdMotionError
@@ -30,7 +40,6 @@ def run_job(job: Job) -> dict:
         try:
             row.update(_file_facts(job.source))
             created = _make_folders(job)
-            _remove_stale_temporaries(job)
             row.update(OPERATION_TASKS[job.operation](job, row))
             row["outputs"] = sorted(job.outputs.values())
         except (UsdMotionError, ValueError, KeyError, OSError, MemoryError) as exc:
@@ -55,12 +64,20 @@ def _make_folders(job: Job) -> list[Path]:
     return sorted(set(created), key=lambda f: len(f.parts), reverse=True)
 
 
-def _remove_stale_temporaries(job: Job) -> None:
-    """Remove temporary files ``atomic_output`` left for this take's outputs when a worker
-    running it was killed (the take is being redone, so nothing else writes them)."""
-    for out in map(Path, job.outputs.values()):
-        for tmp in out.parent.glob(f".{out.stem}.*.tmp{out.suffix}"):
-            tmp.unlink(missing_ok=True)
+def _remove_stale_temporaries(jobs: tuple[Job, ...]) -> None:
+    """Remove the temporary files ``atomic_output`` names ``.STEM.*.tmpSUFFIX`` beside the jobs'
+    outputs (one folder listing per output folder, not one glob per output)."""
+    wanted: dict[str, set[tuple[str, str]]] = {}
+    for out in (Path(p) for job in jobs for p in job.outputs.values()):
+        wanted.setdefault(str(out.parent), set()).add((f".{out.stem}.", f".tmp{out.suffix}"))
+    for folder, names in wanted.items():
+        try:
+            entries = [e.name for e in os.scandir(folder) if e.name.startswith(".") and ".tmp" in e.name]
+        except OSError:  # not made yet: nothing to remove
+            continue
+        for name in entries:
+            if any(name.startswith(head) and name.endswith(tail) for head, tail in names):
+                Path(folder, name).unlink(missing_ok=True)
 
 
 def _remove_empty(folders: list[Path]) -> None:
