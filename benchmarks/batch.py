@@ -2,26 +2,42 @@
 a plain sequential loop of the same library calls, in the same run, on a library of ≥ 500
 takes built from ``../shared/data`` (windows of every readable shared BVH, renamed).
 
-Measures takes/s and frames/s for ``convert`` (to USDC) and ``analyze``, the scheduler
-overhead per take (no-op tasks, and wall time not spent in takes), worker memory over the
-run (RSS sampled every 0.5 s), the cluster start-up, and the 1-minute load average before
-each run (the machine is shared: a loaded machine gives the batch fewer cores than it has
-workers). Prints a table and writes
-``benchmarks/results/batch.json``.
+Engines, per operation, in one run:
 
-    .venv/bin/python benchmarks/batch.py [--takes 500] [--frames 240]
+* ``sequential``: the plain loop in this process, with the library's defaults (Arrow's CSV
+  reader and ``usdmotion.parallel`` may use both cores inside a call): the headline peer;
+* ``sequential-1t``: the same loop in a subprocess with one thread everywhere
+  (``USDMOTION_THREADS=1``, ``OMP_NUM_THREADS=1``, so Arrow's pool and BLAS too), as each
+  Dask worker runs it;
+* ``dask-1``, ``dask-2``: ``run_batch`` on a LocalCluster of 1 and 2 worker processes (takes
+  grouped into tasks, :data:`usdmotion.batch.plan.TASK_BYTES`);
+* ``dask-2/take``: 2 workers, one take per task (``task_bytes=0``), the layout before grouping.
+
+Measures takes/s and frames/s, the CPU per take (of the loop's process; for Dask of every
+process of the run: client + scheduler, nannies, workers), the scheduler overhead per task
+(no-op tasks) and the wall time not spent in takes, worker memory over the run (RSS sampled
+every 0.5 s), the cluster start-up, and the 1-minute load average before each run (the
+machine is shared: a loaded machine gives the batch fewer cores than it has workers).
+Warnings (e.g. IMPLAUSIBLE UNITS of the cgspeed takes read in centimetres) are collected,
+as the batch collects them into its catalogue, and counted, not printed. Prints a table and
+writes ``benchmarks/results/batch.json``.
+
+    .venv/bin/python benchmarks/batch.py [--takes 500] [--frames 240] [--operations convert,analyze]
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import shutil
 import statistics
+import subprocess
 import sys
 import tempfile
 import threading
 import time
+import warnings
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -37,7 +53,9 @@ def build_library(folder: Path, takes: int, frames: int) -> tuple[int, int]:
     motions = []
     for path in sorted(SHARED_DATA.rglob("*.bvh")):
         try:
-            motions.append((path.stem, read_motion(path)))
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # units guesses: the takes are written as read
+                motions.append((path.stem, read_motion(path)))
         except UsdMotionError:
             continue
     written, total = 0, 0
@@ -56,8 +74,9 @@ def build_library(folder: Path, takes: int, frames: int) -> tuple[int, int]:
     return written, total
 
 
-def sequential(library: Path, out: Path, operation: str) -> float:
-    """The plain loop: the library calls the batch task makes, one take after another."""
+def sequential(library: Path, out: Path, operation: str) -> dict:
+    """The plain loop: the library calls the batch task makes, one take after another
+    (warnings recorded, as the batch records them, not printed)."""
     from usdmotion.anthropometry import body_model
     from usdmotion.errors import InputError
     from usdmotion.io import read_motion
@@ -65,23 +84,58 @@ def sequential(library: Path, out: Path, operation: str) -> float:
     from usdmotion.ops.analyse import analyse
     from usdmotion.ops.analyse.report import summary, write_kinematics, write_summary
 
+    from usdmotion.batch.engine import OPERATION_MODULES, _import_modules
+
+    _import_modules(OPERATION_MODULES[operation])  # as warm_up does on the workers, before the clock
     files = sorted(library.rglob("*.bvh"))
     start, cpu = time.perf_counter(), time.process_time()
-    for path in files:
-        dst = out / path.relative_to(library).with_suffix("")
-        dst.parent.mkdir(parents=True, exist_ok=True)
-        motion = read_motion(path)
-        if operation == "convert":
-            convert_motion(motion, f"{dst}.usdc")
-            continue
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        for path in files:
+            dst = out / path.relative_to(library).with_suffix("")
+            dst.parent.mkdir(parents=True, exist_ok=True)
+            motion = read_motion(path)
+            if operation == "convert":
+                convert_motion(motion, f"{dst}.usdc")
+                continue
+            try:
+                body = body_model(motion, "male", None, source=str(path))
+            except InputError:
+                body = None
+            kin = analyse(motion, body=body, source=str(path))
+            write_summary(summary(kin, None, str(path)), f"{dst}.summary.json")
+            write_kinematics(kin, f"{dst}.parquet", None, str(path))
+    return {"wall_s": time.perf_counter() - start, "cpu_s": time.process_time() - cpu, "warnings": len(caught)}
+
+
+#: One thread everywhere, as in a worker of the local cluster (set before NumPy/Arrow load).
+ONE_THREAD = {"USDMOTION_THREADS": "1", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+
+
+def sequential_one_thread(library: Path, out: Path, operation: str) -> dict:
+    """:func:`sequential` in a fresh subprocess with :data:`ONE_THREAD`."""
+    code = ("import json, sys; sys.path.insert(0, sys.argv[1]); import batch; "
+            "print(json.dumps(batch.sequential(batch.Path(sys.argv[2]), batch.Path(sys.argv[3]), sys.argv[4])))")
+    env = {**os.environ, **ONE_THREAD}
+    env.pop("MALLOC_TRIM_THRESHOLD_", None)  # a LocalCluster started earlier in this process leaks Dask's setting
+    done = subprocess.run([sys.executable, "-c", code, str(Path(__file__).parent), str(library), str(out), operation],
+                          env=env, capture_output=True, text=True, check=True)
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def _tree_cpu() -> dict[int, float]:
+    """CPU seconds (user + system) of this process and all its descendants, by pid."""
+    import psutil
+
+    me = psutil.Process()
+    out = {}
+    for proc in (me, *me.children(recursive=True)):
         try:
-            body = body_model(motion, "male", None, source=str(path))
-        except InputError:
-            body = None
-        kin = analyse(motion, body=body, source=str(path))
-        write_summary(summary(kin, None, str(path)), f"{dst}.summary.json")
-        write_kinematics(kin, f"{dst}.parquet", None, str(path))
-    return time.perf_counter() - start, time.process_time() - cpu
+            times = proc.cpu_times()
+            out[proc.pid] = times.user + times.system
+        except psutil.Error:
+            continue
+    return out
 
 
 def _rss() -> int:
@@ -94,10 +148,13 @@ def _noop(i: int) -> int:
     return i
 
 
-def batch_run(library: Path, out: Path, operation: str, workers: int) -> dict:
-    """``run_batch`` on a fresh LocalCluster; start-up timed apart; worker RSS sampled."""
+def batch_run(library: Path, out: Path, operation: str, workers: int, task_bytes: int | None = None,
+              noop: bool = False) -> dict:
+    """``run_batch`` on a fresh LocalCluster; start-up timed apart; worker RSS sampled; CPU of
+    every process of the run (client + scheduler, workers) over the run."""
     from usdmotion.batch import run_batch
     from usdmotion.batch.engine import dask_client, warm_up
+    from usdmotion.batch.plan import TASK_BYTES, group_jobs, plan_jobs
 
     t0 = time.perf_counter()
     with dask_client(workers) as client:
@@ -114,30 +171,93 @@ def batch_run(library: Path, out: Path, operation: str, workers: int) -> dict:
                 stop.wait(0.5)
 
         sampler = threading.Thread(target=sample, daemon=True)
+        cpu_before = _tree_cpu()
         sampler.start()
         result = run_batch(operation, library, out, params={"to": "usdc"} if operation == "convert" else {},
-                           force=True, client=client)
+                           force=True, client=client, task_bytes=task_bytes)
         stop.set()
         sampler.join()
+        cpu_after = _tree_cpu()
+        client_cpu = cpu_after[os.getpid()] - cpu_before[os.getpid()]
+        total_cpu = sum(t - cpu_before.get(pid, 0.0) for pid, t in cpu_after.items())
         overhead = None
-        if workers == 2:  # scheduler round trip per take: no-op tasks through the same cluster
+        if noop:  # scheduler round trip per task: no-op tasks through the same cluster
             n = len(result.rows)
             t1 = time.perf_counter()
             client.gather(client.map(_noop, range(n), pure=False))
             overhead = (time.perf_counter() - t1) / n
     rows = result.rows
+    jobs = plan_jobs(operation, library, out, {}, {})
+    tasks = len(group_jobs(jobs, workers, TASK_BYTES[operation] if task_bytes is None else task_bytes))
     task_s = sum(r["seconds"] for r in rows)
     cpu_s = sum(r["cpu_seconds"] or 0 for r in rows)
     mem = [m for _, m in samples]
     tenth = max(1, len(mem) // 10)  # memory after the first tenth of the run against the last tenth
-    return {"wall_s": result.seconds, "startup_s": startup, "takes": len(rows), "failed": len(result.failed),
+    return {"wall_s": result.seconds, "startup_s": startup, "takes": len(rows), "tasks": tasks,
+            "failed": len(result.failed),
             "frames": sum(r.get("frames") or 0 for r in rows), "task_s": task_s,
-            "cpu_ms_per_take": 1000 * cpu_s / len(rows),
+            "cpu_ms_per_take": 1000 * total_cpu / len(rows), "in_task_cpu_ms_per_take": 1000 * cpu_s / len(rows),
+            "client_cpu_ms_per_take": 1000 * client_cpu / len(rows),
+            "warnings": sum(bool(r.get("warnings")) for r in rows),
             "idle_per_take_ms": 1000 * (result.seconds * workers - task_s) / len(rows),
             "noop_task_ms": None if overhead is None else 1000 * overhead,
             "rss_first_mib": statistics.mean(mem[tenth:2 * tenth]) / 2**20 if len(mem) > 1 else None,
             "rss_last_mib": statistics.mean(mem[-tenth:]) / 2**20 if len(mem) > 1 else None,
             "rss_max_mib": max(mem) / 2**20 if mem else None, "rss_samples": len(mem)}
+
+
+ENGINES = (("dask-1", 1, None), ("dask-2", 2, None), ("dask-2/take", 2, 0))
+
+
+def run_operation(library: Path, work: Path, operation: str, takes: int, frames: int) -> dict:
+    """Every engine on one operation, one after another; the 1-minute load average before each."""
+    load = os.getloadavg()[0]
+    seq = sequential(library, work / f"seq-{operation}", operation)
+    runs = {"sequential": {**seq, "takes": takes, "frames": frames, "load_before": load,
+                           "cpu_ms_per_take": 1000 * seq["cpu_s"] / takes}}
+    load = os.getloadavg()[0]
+    one = sequential_one_thread(library, work / f"seq1-{operation}", operation)
+    runs["sequential-1t"] = {**one, "takes": takes, "frames": frames, "load_before": load,
+                             "cpu_ms_per_take": 1000 * one["cpu_s"] / takes}
+    for name, workers, task_bytes in ENGINES:
+        load = os.getloadavg()[0]
+        runs[name] = {**batch_run(library, work / name.replace("/", "-") / operation, operation, workers, task_bytes,
+                                  noop=name == "dask-2"), "load_before": load}
+    return runs
+
+
+def table_rows(operation: str, runs: dict) -> list[list]:
+    seq, one = runs["sequential"]["wall_s"], runs["sequential-1t"]["wall_s"]
+    rows = []
+    for name, r in runs.items():
+        rss = (f"{_fmt(r.get('rss_first_mib'), 0)} → {_fmt(r.get('rss_last_mib'), 0)} (max {_fmt(r.get('rss_max_mib'), 0)})"
+               if "rss_first_mib" in r else "-")
+        rows.append([operation, name, f"{r['wall_s']:.1f}", f"{r['takes'] / r['wall_s']:.1f}",
+                     f"{r['frames'] / r['wall_s']:.0f}", f"{seq / r['wall_s']:.2f}x", f"{one / r['wall_s']:.2f}x",
+                     f"{r['cpu_ms_per_take']:.1f}", _fmt(r.get("client_cpu_ms_per_take")),
+                     f"{r.get('startup_s', 0):.1f}", _fmt(r.get("idle_per_take_ms")), _fmt(r.get("noop_task_ms")),
+                     rss, f"{r['load_before']:.1f}"])
+    return rows
+
+
+def on_paper(results: dict) -> dict:
+    """Takes/s a 64-core machine and a 10-node x 16-core cluster would do: the CPU of a take on a
+    worker (in-task, dask-1) against the cores, and the scheduler's no-op task rate measured here
+    times the takes per task."""
+    paper = {}
+    for op, runs in results.items():
+        per_take = runs["dask-1"]["in_task_cpu_ms_per_take"] / 1000
+        tasks_per_s = 1000 / max(runs["dask-2"]["noop_task_ms"] or 1, 0.2)
+        takes_per_task = runs["dask-2"]["takes"] / max(1, runs["dask-2"]["tasks"])
+        bound = tasks_per_s * takes_per_task
+        paper[op] = {"cpu_per_take_s": per_take, "scheduler_tasks_per_s": tasks_per_s,
+                     "takes_per_task": takes_per_task,
+                     **{name: min(cores / per_take, bound) for name, cores in (("64_cores", 64), ("10_nodes_16_cores", 160))}}
+        print(f"  {op}: {1000 * per_take:.0f} ms CPU per take: 64 cores ≈ {64 / per_take:.0f} takes/s of work, "
+              f"10 nodes x 16 cores ≈ {160 / per_take:.0f}; the scheduler ran {tasks_per_s:.0f} no-op tasks/s here "
+              f"x {takes_per_task:.0f} takes per task ≈ {bound:.0f} takes/s, so ≈ {paper[op]['64_cores']:.0f} "
+              f"and {paper[op]['10_nodes_16_cores']:.0f} takes/s (at 64 cores TASK_BYTES keeps ≥ 4 tasks per core)")
+    return paper
 
 
 def main() -> None:
@@ -153,43 +273,15 @@ def main() -> None:
         print(f"library: {takes} takes, {frames} frames in total ({frames / takes:.0f} per take)")
         results, table = {}, []
         for operation in args.operations.split(","):
-            load = os.getloadavg()[0]
-            seq, seq_cpu = sequential(library, work / f"seq-{operation}", operation)
-            runs = {"sequential": {"wall_s": seq, "takes": takes, "frames": frames, "load_before": load,
-                                   "cpu_ms_per_take": 1000 * seq_cpu / takes}}
-            for workers in (1, 2):
-                load = os.getloadavg()[0]
-                runs[f"dask-{workers}"] = {**batch_run(library, work / f"dask{workers}-{operation}", operation,
-                                                       workers), "load_before": load}
-            results[operation] = runs
-            for name, r in runs.items():
-                table.append([operation, name, f"{r['wall_s']:.1f}", f"{r['takes'] / r['wall_s']:.1f}",
-                              f"{r['frames'] / r['wall_s']:.0f}", f"{seq / r['wall_s']:.2f}x",
-                              f"{r['cpu_ms_per_take']:.0f}", f"{r.get('startup_s', 0):.1f}",
-                              _fmt(r.get("idle_per_take_ms")),
-                              _fmt(r.get("noop_task_ms")),
-                              f"{_fmt(r.get('rss_first_mib'), 0)} → {_fmt(r.get('rss_last_mib'), 0)}"
-                              f" (max {_fmt(r.get('rss_max_mib'), 0)})" if "rss_first_mib" in r else "-",
-                              f"{r['load_before']:.1f}"])
-        print_table(f"usdmotion batch on {machine()['cpus']} cores ({takes} takes, {frames} frames)",
-                    ["operation", "engine", "wall s", "takes/s", "frames/s", "vs loop", "CPU ms/take",
-                     "start-up+imports s",
-                     "idle ms/take", "no-op ms/task", "worker RSS MiB first→last", "load avg"], table)
-        per_take = {op: results[op]["dask-1"]["cpu_ms_per_take"] / 1000 for op in results}
-        print("on paper, from the CPU time per take on a worker: " +
-              ", ".join(f"{op} {1000 * s:.0f} ms" for op, s in per_take.items()))
-        paper = {}
-        for op, s in per_take.items():
-            bound = 1000 / max(results[op]["dask-2"]["noop_task_ms"] or 1, 0.2)  # no-op tasks/s through Dask here
-            paper[op] = {"scheduler_tasks_per_s": bound,
-                         **{name: min(cores / s, bound)
-                            for name, cores in (("64_cores", 64), ("10_nodes_16_cores", 160))}}
-            print(f"  {op}: 64 cores ≈ {64 / s:.0f} takes/s of work; 10 nodes x 16 cores ≈ {160 / s:.0f} takes/s; "
-                  f"one scheduler fed from one client ran {bound:.0f} no-op tasks/s here, so ≈ "
-                  f"{paper[op]['64_cores']:.0f} and {paper[op]['10_nodes_16_cores']:.0f} takes/s")
+            results[operation] = run_operation(library, work, operation, takes, frames)
+            table += table_rows(operation, results[operation])
+        print_table(f"usdmotion batch on {machine()['cpus']} cores ({takes} takes, {frames} frames); CPU: of every "
+                    "process of the run, ms per take", ["operation", "engine", "wall s", "takes/s", "frames/s",
+                    "vs loop", "vs 1t loop", "CPU ms/take", "client CPU", "start-up+imports s", "idle ms/take",
+                    "no-op ms/task", "worker RSS MiB first→last", "load avg"], table)
+        paper = on_paper(results)
         path = write_results("batch", {"takes": takes, "frames": frames, "frames_per_take": args.frames,
-                                       "results": results, "cpu_per_take_s": per_take,
-                                       "on_paper_takes_per_s": paper})
+                                       "results": results, "on_paper_takes_per_s": paper})
         print(f"wrote {path}")
     finally:
         shutil.rmtree(work, ignore_errors=True)

@@ -170,17 +170,26 @@ def test_bad_arguments_exit_2(tmp_path, capsys):
 
 class _DaskProcesses:
     """A ``dask scheduler`` and ``dask worker`` processes on 127.0.0.1 (no nanny, so a killed
-    worker stays dead); everything is killed on exit."""
+    worker stays dead); everything is killed on exit. ``scheduler_env``: extra environment of
+    the scheduler (Dask settings as ``DASK_...`` variables)."""
 
-    def __init__(self, folder: Path, n_workers: int):
+    def __init__(self, folder: Path, n_workers: int, scheduler_env: dict | None = None):
         dask = str(Path(sys.executable).parent / "dask")
         self.file = folder / "scheduler.json"
         self.procs = [subprocess.Popen([dask, "scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
-                                        "--scheduler-file", str(self.file)], stderr=subprocess.DEVNULL)]
+                                        "--scheduler-file", str(self.file)], stderr=subprocess.DEVNULL,
+                                       env={**os.environ, **(scheduler_env or {})})]
         deadline = time.time() + 60
-        while not self.file.exists() and time.time() < deadline:
+        while time.time() < deadline and not self.file.exists():
             time.sleep(0.2)
-        self.address = json.loads(self.file.read_text())["address"]
+        while True:  # the scheduler may not have finished writing it
+            try:
+                self.address = json.loads(self.file.read_text())["address"]
+                break
+            except (json.JSONDecodeError, KeyError):
+                if time.time() > deadline:
+                    raise
+                time.sleep(0.2)
         self.workers = [subprocess.Popen([dask, "worker", self.address, "--nthreads", "1", "--no-nanny",
                                           "--no-dashboard", "--name", f"w{i}"], stderr=subprocess.DEVNULL)
                         for i in range(n_workers)]
@@ -199,8 +208,13 @@ class _DaskProcesses:
             proc.wait(timeout=30)
 
 
-def test_scheduler_and_two_worker_processes_survive_a_killed_worker(library, tmp_path):
-    cluster = _DaskProcesses(tmp_path, 2)
+@pytest.mark.parametrize("allowed_failures", [None, 0], ids=["scheduler-reruns", "batch-splits"])
+def test_scheduler_and_two_worker_processes_survive_a_killed_worker(library, tmp_path, allowed_failures):
+    """The killed worker's task is re-run by the scheduler (Dask's default), or, when the
+    scheduler gives up on it at once (``allowed-failures: 0``), fails as a whole and the batch
+    re-submits its takes one per task: either way every take is done once, correctly."""
+    env = {} if allowed_failures is None else {"DASK_DISTRIBUTED__SCHEDULER__ALLOWED_FAILURES": str(allowed_failures)}
+    cluster = _DaskProcesses(tmp_path, 2, env)
     try:
         out = tmp_path / "out"
         killed = threading.Event()
@@ -214,7 +228,11 @@ def test_scheduler_and_two_worker_processes_survive_a_killed_worker(library, tmp
                 victim[0].send_signal(signal.SIGKILL)
 
         params = {"to": "usda", "mesh": False}
-        result = run_batch("convert", library, out, params=params, scheduler=cluster.address, on_row=kill_first_worker)
+        result = run_batch("convert", library, out, params=params, scheduler=cluster.address, on_row=kill_first_worker,
+                           task_bytes=10 << 20)  # groups of ≥ 640 kB (task_bytes / 16): 3 tasks of several takes
+        assert sorted(r["relpath"] for r in result.rows) == sorted(p.relative_to(library).as_posix()
+                                                                  for p in _motion_files(library)), \
+            [(r["relpath"], r["worker"], r["status"], r["error"]) for r in result.rows]  # each once
         assert killed.is_set() and victim[0].wait(timeout=30) == -signal.SIGKILL
         assert len(result.rows) == len(_motion_files(library))  # every take finished
         assert sorted(r["relpath"] for r in result.failed) == sorted(MALFORMED)
@@ -290,3 +308,51 @@ def test_ctrl_c_leaves_complete_outputs_and_a_consistent_catalogue(library, tmp_
     rest = run_batch("convert", library, out, workers=1)
     assert rest.skipped == len(done) and len(rest.rows) == len(_motion_files(library)) - len(done)
     assert sum(r["status"] == "ok" for r in rest.rows) + len(done) == len(_motion_files(library)) - 2
+
+
+def test_group_jobs_sizes_and_order(library, tmp_path):
+    """Groups keep every take once, in order; none over the byte budget unless one take is; they
+    shrink towards the end; ``task_bytes=0`` gives one take per task."""
+    from usdmotion.batch.plan import group_jobs, plan_jobs
+
+    jobs = plan_jobs("convert", library, tmp_path / "out", {}, {})
+    sizes = {job.take: (library / job.relpath).stat().st_size for job in jobs}
+    budget = sum(sizes.values()) // 3
+    groups = group_jobs(jobs, 1, budget)
+    assert [job for group in groups for job in group] == jobs
+    assert all(len(g) == 1 or sum(sizes[j.take] for j in g) <= budget for g in groups)
+    assert 1 < len(groups) < len(jobs) and len(groups[-1]) <= len(groups[0])
+    assert [len(g) for g in group_jobs(jobs, 2, 0)] == [1] * len(jobs)
+    assert group_jobs([], 2, budget) == []
+
+
+def test_retarget_batch_matches_the_single_file_command(tmp_path, monkeypatch, shared_file):
+    """Two short takes retargeted onto a rig with other bone lengths by one worker (JAX compiles
+    once there; the second take reuses it), outputs byte-identical to ``usdmotion retarget``'s
+    and reports equal but for their timings. A 4-joint rig and the on-disk compilation cache
+    (written by the worker, read by this process) keep the JAX compiles short."""
+    monkeypatch.setenv("USDMOTION_JAX_CACHE", str(tmp_path / "jax"))  # inherited by the workers
+    source = shared_file("edge_cases/fairmotion_sinusoidal_no_end_site.bvh")
+    src, single = tmp_path / "takes", tmp_path / "single"
+    src.mkdir(), single.mkdir()
+    motion = read_motion(source)
+    for start in (0, 60):
+        write_motion(motion.sliced(start, start + 40), src / f"wave{start}.bvh")
+    target = tmp_path / "other_lengths.bvh"  # same joint names, other bone lengths
+    target.write_text(source.read_text().replace("OFFSET 0.0 5.0 0.0", "OFFSET 0.0 6.5 0.0")
+                      .replace("OFFSET -5.0 0.0 0.0", "OFFSET -3.5 0.0 0.0"))
+    out = tmp_path / "out"
+    assert main(["batch", "retarget", str(src), str(out), "--target", str(target), "--to", "usda",
+                 "--workers", "1"]) == 0
+    cat = _catalogue(out)
+    assert list(cat.status) == ["ok", "ok"] and cat.worker.nunique() == 1
+    for name in ("wave0", "wave60"):
+        assert main(["retarget", str(src / f"{name}.bvh"), str(single / f"{name}.usda"), "--target", str(target),
+                     "--report", str(single / f"{name}.json")]) == 0
+        assert (single / f"{name}.usda").read_bytes() == (out / f"{name}.usda").read_bytes()
+        batch_report, own = (json.loads(p.read_text()) for p in (out / f"{name}.retarget.json", single / f"{name}.json"))
+        for report in (batch_report, own):
+            del report["time_s"], report["frames_per_second_solve"]
+        assert batch_report == own
+        assert own["frames"] == 40 and own["target_joints"] == 4
+        assert read_motion(out / f"{name}.usda").n_frames == 40

@@ -25,9 +25,6 @@ DEFAULT_PARAMS = {"convert": {"to": "usdc", "mesh": False}, "analyze": {}, "segm
 #: the scheduler, the client and the worker's event loop handle tens of tasks, not thousands.
 #: ``0``: one take per task (the operations whose takes take seconds).
 TASK_BYTES = {"convert": 4 << 20, "analyze": 1 << 20, "segment": 1 << 20, "retarget": 0, "render": 0}
-#: Tasks per worker slot at least (when there are takes enough): the last tasks stay short, so no
-#: worker idles long at the end, and a lost worker loses little.
-TASKS_PER_SLOT = 4
 FRAMES_DIR = "frames"
 CATALOGUE = "catalogue.parquet"
 
@@ -139,26 +136,24 @@ def up_to_date(job: Job, previous: dict | None) -> bool:
 
 
 def group_jobs(jobs: list[Job], slots: int, task_bytes: int) -> list[tuple[Job, ...]]:
-    """Consecutive groups of ``jobs`` (one Dask task each) of about ``task_bytes`` source bytes.
-
-    There are at least ``TASKS_PER_SLOT * slots`` groups when there are that many jobs
-    (``slots``: the cluster's worker threads); ``task_bytes <= 0`` gives one job per group.
-    Groups keep the jobs' order (neighbouring takes of one session share a group).
+    """Consecutive groups of ``jobs`` (one Dask task each), in the jobs' order, for ``slots``
+    worker threads: at most ``task_bytes`` source bytes a group (or one job), and smaller
+    towards the end ("guided" sizes: a quarter of what remains per slot, down to
+    ``task_bytes / 16``), so the workers finish together instead of one waiting for the
+    last big group. ``task_bytes <= 0``: one job per group.
     """
-    if not jobs:
-        return []
     if task_bytes <= 0:
         return [(job,) for job in jobs]
-    sizes = [_size(job.source) for job in jobs]
-    total = sum(sizes)
-    count = min(len(jobs), max(-(-total // task_bytes), TASKS_PER_SLOT * max(1, slots)))
+    sizes = [max(1, _size(job.source)) for job in jobs]
+    remaining = sum(sizes)
     groups, current, filled = [], [], 0
     for job, size in zip(jobs, sizes):
+        if current and filled + size > max(task_bytes // 16, min(task_bytes, remaining // (4 * max(1, slots)))):
+            groups.append(tuple(current))
+            remaining -= filled
+            current, filled = [], 0
         current.append(job)
         filled += size
-        if filled * count >= total * (len(groups) + 1) and len(groups) < count - 1:
-            groups.append(tuple(current))
-            current = []
     if current:
         groups.append(tuple(current))
     return groups
