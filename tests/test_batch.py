@@ -8,11 +8,13 @@ take; catalogue facts are checked against the files themselves (BVH headers, usd
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import re
 import shutil
 import signal
+import socket
 import subprocess
 import sys
 import threading
@@ -80,8 +82,13 @@ def _no_temporaries(out: Path) -> None:
 
 def test_local_cluster_convert_catalogue_and_resume(library, tmp_path, capsys):
     out = tmp_path / "out"
-    assert main(["batch", "convert", str(library), str(out), "--workers", "2"]) == 1  # two takes failed
+    with socket.socket() as dashboard:  # Dask's default dashboard port taken (another cluster's): no warning
+        with contextlib.suppress(OSError):  # taken already
+            dashboard.bind(("", 8787))
+            dashboard.listen()
+        assert main(["batch", "convert", str(library), str(out), "--workers", "2"]) == 1  # two takes failed
     captured = capsys.readouterr()
+    assert "8787" not in captured.err and "warn" not in captured.err.lower()
     files = _motion_files(library)
     assert f"batch convert: {len(files)} takes: {len(files) - 2} done, 0 up to date, 2 failed" in captured.out
     assert f"usdmotion: error: {library / 'broken/truncated.bvh'}:" in captured.err

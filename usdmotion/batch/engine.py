@@ -72,6 +72,9 @@ def _client(workers: int | None, scheduler: str | None, memory_limit: str | int)
             LocalCluster(n_workers=workers or default_workers(), threads_per_worker=1, processes=True,
                          memory_limit=memory_limit, dashboard_address=None, worker_dashboard_address=None,
                          env={"USDMOTION_THREADS": "1"},  # one take per core: no threads inside a take
+                         # the scheduler's HTTP server (health, metrics) starts anyway: on a free local
+                         # port, not on 8787, where another cluster's dashboard may be (a warning per run)
+                         scheduler_kwargs={"dashboard": False, "dashboard_address": "127.0.0.1:0"},
                          silence_logs=logging.CRITICAL) as cluster, Client(cluster) as client:
         yield client
 
