@@ -70,7 +70,7 @@ class ContactThresholds:
         return {k: float(getattr(self, k)) for k in self.__dataclass_fields__}
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class FootContacts:
     """Contact frames of a motion's heel/ankle and toe joints.
 
