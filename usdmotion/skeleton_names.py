@@ -7,7 +7,8 @@ body-segment landmarks (:mod:`usdmotion.anthropometry`) and automatic retargetin
 * **Names.** :func:`strip_namespace` drops ``mixamorig:`` / ``group|`` prefixes;
   :func:`parse_side` splits a name into side and lower-case base
   (``mixamorig:LeftForeArm`` → ``("left", "forearm")``, ``lShldr`` → ``("left", "shldr")``,
-  ``Knee.R`` → ``("right", "knee")``); :func:`normalise_name` is the comparable key that
+  ``Knee.R`` → ``("right", "knee")``, ``CC_Base_L_Calf`` → ``("left", "calf")``);
+  :func:`normalise_name` is the comparable key that
   joint maps match names by.
 * **Limb words.** :data:`ELBOW_WORDS` and :data:`KNEE_WORDS`: base names of the middle
   joint of an arm and a leg (``forearm``, ``lowerarm``, ``radius``..., ``leg``, ``shin``,
@@ -100,11 +101,17 @@ def parse_side(name: str) -> tuple[str | None, str]:
         rest = m.group(2)
         if _WORD_BREAK.match(rest) or base_name(rest) in LIMB_WORDS or re.sub(r"[^a-z0-9]", "", rest) in LIMB_WORDS:
             return _letter_side(m.group(1)), base_name(rest)
+    words = _SEPARATORS.split(name)
+    sides = [k for k, w in enumerate(words[:-1]) if k > 0 and w.lower() in _SIDE_TOKENS]
+    if len(sides) == 1 and words[-1].lower() != "end":  # a side word inside: CC_Base_L_Calf, Bip01 L Thigh
+        k = sides[0]
+        return _letter_side(words[k][0]), base_name("".join(words[k + 1:]))
     return None, base_name(name)
 
 
 _TOKENS = re.compile(r"[A-Z]+(?![a-z])|[A-Z]?[a-z]+|[0-9]+")
 _SIDE_TOKENS = {"left": "l", "l": "l", "right": "r", "r": "r"}
+_SEPARATORS = re.compile(r"[_.\- ]+")
 
 
 def normalise_name(name: str) -> str:
@@ -158,7 +165,7 @@ def names_by_key(names: Iterable[str], key: Callable[[str], str]) -> dict[str, s
 def profile_joints(profile: dict, names: Iterable[str]) -> dict[str, str] | None:
     """Canonical point → joint name of ``names`` if the skeleton fits ``profile``, else ``None``."""
     table = names_by_key(names, strip_namespace)
-    if any(s not in table for s in profile["signature"]):
+    if not all(_has_any(table, s) for s in profile["signature"]):
         return None
     resolved = {}
     for point, candidates in profile["joints"].items():
@@ -171,20 +178,61 @@ def profile_joints(profile: dict, names: Iterable[str]) -> dict[str, str] | None
     return resolved
 
 
+def _has_any(table: Mapping[str, str], candidates: str | Sequence[str]) -> bool:
+    return any(c in table for c in ([candidates] if isinstance(candidates, str) else candidates))
+
+
 def detect_profile(names: Iterable[str]) -> str | None:
     """Name of the built-in profile a skeleton fits (most points resolved), or ``None``.
 
     Profiles with ``"auto_map": false`` are left out: they are used only where named.
+    ``"generic"`` profiles (names other rigs share, e.g. HumanIK's) count only when no
+    other profile fits.
     """
     names = list(names)
-    best, best_count = None, 0
-    for name, profile in rig_profiles().items():
-        if not profile.get("auto_map", True):
-            continue
-        resolved = profile_joints(profile, names)
-        if resolved is not None and len(resolved) > best_count:
-            best, best_count = name, len(resolved)
-    return best
+    for generic in (False, True):
+        best, best_count = None, 0
+        for name, profile in rig_profiles().items():
+            if not profile.get("auto_map", True) or profile.get("generic", False) != generic:
+                continue
+            resolved = profile_joints(profile, names)
+            if resolved is not None and len(resolved) > best_count:
+                best, best_count = name, len(resolved)
+        if best is not None:
+            return best
+    return None
+
+
+#: What a joint that is no body point of its rig's profile is (:func:`joint_kinds`).
+JOINT_KINDS = ("twist", "floor root", "hips root", "helper")
+
+
+def joint_kinds(profile: dict, names: Iterable[str]) -> dict[str, str]:
+    """Joint name → kind (one of :data:`JOINT_KINDS`) for the joints of ``names`` that
+    ``profile`` marks as twist segments, root bones or helpers (namespaces ignored)."""
+    twist = [re.compile(p) for p in profile.get("twist", ())]
+    helpers = [re.compile(p) for p in profile.get("helpers", ())]
+    roots = profile.get("roots", {})
+    out = {}
+    for name in names:
+        bare = strip_namespace(name)
+        if bare in roots:
+            out[name] = f"{roots[bare]} root"
+        elif any(p.fullmatch(bare) for p in twist):
+            out[name] = "twist"
+        elif any(p.fullmatch(bare) for p in helpers):
+            out[name] = "helper"
+    return out
+
+
+def marked_joints(names: Sequence[str]) -> dict[int, str]:
+    """Joint index → kind (:data:`JOINT_KINDS`) of the joints that the rig profile a skeleton
+    fits (:func:`detect_profile`) marks as twist segments, root bones or helpers; empty if none fits."""
+    profile = detect_profile(names)
+    if profile is None:
+        return {}
+    kinds = joint_kinds(rig_profiles()[profile], names)
+    return {j: kinds[n] for j, n in enumerate(names) if n in kinds}
 
 
 # --------------------------------------------------------------------------- presets
