@@ -233,3 +233,25 @@ def test_cmu_walk_contacts_alternate(shared_file):
     assert np.all(found.contact.any(axis=1)[30:-30])  # walking: never both feet in the air
     heights = joint_positions(walk)[:, found.indices, 1] * walk.meters_per_unit
     assert np.all(heights[found.contact] - found.floor - found.clearance[np.nonzero(found.contact)[1]] < 0.05)
+
+
+def test_contacts_move_to_another_rig_by_part():
+    from conftest import TEST_DATA
+
+    from usdmotion.io import read_motion
+    from usdmotion.ops.contacts import contacts_on_rig
+
+    motion, _ = synthetic_walk(120.0)
+    found = detect_contacts(motion)
+    rig = read_motion(TEST_DATA / "rigs" / "unreal.bvh")  # ankle 9 cm, ball 2 cm above the floor at rest
+    moved = contacts_on_rig(found, rig, floor=0.0)
+    assert moved.joints == ("foot_l", "ball_l", "foot_r", "ball_r") and moved.parts == found.parts
+    assert moved.clearance == pytest.approx([0.07, 0.0, 0.07, 0.0], abs=1e-9)
+    assert np.array_equal(moved.contact, found.contact) and moved.floor == 0.0
+    assert [rig.joint_names[i] for i in moved.indices] == list(moved.joints)
+    only_ankles = dataclasses.replace(found, joints=found.joints[::2], indices=found.indices[::2],
+                                      parts=found.parts[::2], contact=found.contact[:, ::2],
+                                      clearance=found.clearance[::2])
+    assert contacts_on_rig(only_ankles, rig).joints == ("foot_l", "foot_r")
+    with pytest.raises(InputError, match="2 contact joints in common but 3 clearances"):
+        contacts_on_rig(only_ankles, rig, clearance=np.zeros(3))

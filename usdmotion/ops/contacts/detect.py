@@ -293,3 +293,39 @@ def detect_contacts(motion: Motion, *, floor: float | None = None, thresholds: C
     contact = detect_in_signals(heights, speeds, motion.fps, thresholds, floor, clearance)
     return FootContacts(tuple(motion.joint_names[i] for i in indices), indices, parts, contact, floor, clearance,
                         motion.up_axis, float(motion.fps), thresholds)
+
+
+def contacts_on_rig(contacts: FootContacts, motion: Motion, *, floor: float | None = None,
+                    clearance: np.ndarray | None = None, source: str | None = None) -> FootContacts:
+    """The same contact frames on another rig's heel/ankle/toe joints (e.g. a retargeting target),
+    matched by part (``left_ankle``...); parts the other rig lacks are dropped.
+
+    Args:
+        contacts: contacts of the source motion (same frames as ``motion``'s).
+        motion: the other rig (its animation is not used unless ``clearance`` is left to it).
+        floor: its floor height in metres (default: ``contacts.floor``).
+        clearance: ``(C',)`` planted clearances (m) of the kept parts. Default: from the rig's
+            rest pose, which must stand upright on flat feet: each contact joint's rest height
+            above the lowest of them, plus the source's smallest clearance.
+
+    Raises:
+        InputError: no part in common, or a wrong number of clearances.
+    """
+    from usdmotion.kinematics import rest_positions
+
+    parts, indices = contact_joints(motion, source)
+    where = {p: k for k, p in enumerate(parts)}
+    keep = [c for c, p in enumerate(contacts.parts) if p in where]
+    if not keep:
+        raise InputError(source, f"no contact joint in common (source {', '.join(contacts.parts)}; "
+                                 f"target {', '.join(parts)})")
+    target = np.array([indices[where[contacts.parts[c]]] for c in keep], np.int64)
+    if clearance is None:
+        heights = rest_positions(motion)[target, UP_INDEX[motion.up_axis]] * motion.meters_per_unit
+        clearance = heights - heights.min() + float(contacts.clearance.min(initial=0.0))
+    clearance = np.asarray(clearance, float)
+    if clearance.shape != (len(keep),):
+        raise InputError(source, f"{len(keep)} contact joints in common but {clearance.size} clearances given")
+    return FootContacts(tuple(motion.joint_names[i] for i in target), target, tuple(contacts.parts[c] for c in keep),
+                        contacts.contact[:, keep], contacts.floor if floor is None else float(floor), clearance,
+                        motion.up_axis, contacts.fps, contacts.thresholds)
