@@ -255,3 +255,15 @@ def test_contacts_move_to_another_rig_by_part():
     assert contacts_on_rig(only_ankles, rig).joints == ("foot_l", "foot_r")
     with pytest.raises(InputError, match="2 contact joints in common but 3 clearances"):
         contacts_on_rig(only_ankles, rig, clearance=np.zeros(3))
+
+
+def test_contacts_on_a_rig_with_clearances_from_its_motion():
+    from usdmotion.ops.contacts import contacts_on_rig
+
+    motion, _ = synthetic_walk(120.0, floor=0.5)
+    found = detect_contacts(motion, floor=0.5)
+    same = contacts_on_rig(found, motion, clearance="motion")
+    assert same.clearance == pytest.approx(found.clearance, abs=1e-12)
+    assert same.clearance == pytest.approx([ANKLE_HEIGHT, TOE_HEIGHT] * 2, abs=1e-6)
+    with pytest.raises(ValueError, match="clearance must be 'rest', 'motion' or an array"):
+        contacts_on_rig(found, motion, clearance="floor")

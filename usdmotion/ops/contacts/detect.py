@@ -296,17 +296,20 @@ def detect_contacts(motion: Motion, *, floor: float | None = None, thresholds: C
 
 
 def contacts_on_rig(contacts: FootContacts, motion: Motion, *, floor: float | None = None,
-                    clearance: np.ndarray | None = None, source: str | None = None) -> FootContacts:
+                    clearance: str | np.ndarray = "rest", source: str | None = None) -> FootContacts:
     """The same contact frames on another rig's heel/ankle/toe joints (e.g. a retargeting target),
     matched by part (``left_ankle``...); parts the other rig lacks are dropped.
 
     Args:
         contacts: contacts of the source motion (same frames as ``motion``'s).
-        motion: the other rig (its animation is not used unless ``clearance`` is left to it).
+        motion: the other rig (its animation is used only by ``clearance="motion"``).
         floor: its floor height in metres (default: ``contacts.floor``).
-        clearance: ``(C',)`` planted clearances (m) of the kept parts. Default: from the rig's
-            rest pose, which must stand upright on flat feet: each contact joint's rest height
-            above the lowest of them, plus the source's smallest clearance.
+        clearance: planted clearances (m) of the kept parts: ``"rest"`` (default) from the
+            rig's rest pose, which must stand upright on flat feet: each contact joint's rest
+            height above the lowest of them, plus the source's smallest clearance;
+            ``"motion"``: estimated from ``motion``'s own animation like :func:`detect_contacts`
+            does (its percentile height above ``floor``; a result that floats throughout
+            then looks planted); or an array ``(C',)``.
 
     Raises:
         InputError: no part in common, or a wrong number of clearances.
@@ -320,12 +323,18 @@ def contacts_on_rig(contacts: FootContacts, motion: Motion, *, floor: float | No
         raise InputError(source, f"no contact joint in common (source {', '.join(contacts.parts)}; "
                                  f"target {', '.join(parts)})")
     target = np.array([indices[where[contacts.parts[c]]] for c in keep], np.int64)
-    if clearance is None:
+    floor = contacts.floor if floor is None else float(floor)
+    if isinstance(clearance, str) and clearance == "rest":
         heights = rest_positions(motion)[target, UP_INDEX[motion.up_axis]] * motion.meters_per_unit
         clearance = heights - heights.min() + float(contacts.clearance.min(initial=0.0))
+    elif isinstance(clearance, str) and clearance == "motion":
+        heights = joint_positions(motion)[:, target, UP_INDEX[motion.up_axis]] * motion.meters_per_unit
+        clearance = planted_clearance(heights, floor, (contacts.thresholds or ContactThresholds()).floor_percentile)
+    elif isinstance(clearance, str):
+        raise ValueError(f"clearance must be 'rest', 'motion' or an array, got {clearance!r}")
     clearance = np.asarray(clearance, float)
     if clearance.shape != (len(keep),):
         raise InputError(source, f"{len(keep)} contact joints in common but {clearance.size} clearances given")
     return FootContacts(tuple(motion.joint_names[i] for i in target), target, tuple(contacts.parts[c] for c in keep),
-                        contacts.contact[:, keep], contacts.floor if floor is None else float(floor), clearance,
+                        contacts.contact[:, keep], floor, clearance,
                         motion.up_axis, contacts.fps, contacts.thresholds)
