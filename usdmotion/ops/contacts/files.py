@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 from pathlib import Path
 
 import numpy as np
@@ -47,7 +48,7 @@ def contacts_document(contacts: FootContacts, file: str | None = None) -> dict:
 
 def write_contacts_json(contacts: FootContacts, path: str | os.PathLike, file: str | None = None) -> None:
     """Write the contacts JSON atomically."""
-    text = json.dumps(contacts_document(contacts, file), indent=1)
+    text = re.sub(r"\[\s*(\d+),\s*(\d+)\s*\]", r"[\1, \2]", json.dumps(contacts_document(contacts, file), indent=1))
     with atomic_output(path) as tmp:
         Path(tmp).write_text(text + "\n", encoding="utf-8")
 
