@@ -267,3 +267,26 @@ def test_contacts_on_a_rig_with_clearances_from_its_motion():
     assert same.clearance == pytest.approx([ANKLE_HEIGHT, TOE_HEIGHT] * 2, abs=1e-6)
     with pytest.raises(ValueError, match="clearance must be 'rest', 'motion' or an array"):
         contacts_on_rig(found, motion, clearance="floor")
+
+
+def test_below_floor_of_any_joint():
+    from usdmotion.ops.contacts import below_floor
+
+    positions = np.zeros((5, 3, 3))
+    positions[..., 2] = 0.5  # Z up, everything 50 cm above a floor at 0.1 m
+    positions[1, 2, 2] = 0.08  # 2 cm under
+    positions[3, 0, 2] = 0.0995  # 0.05 cm under: within the 1 mm tolerance
+    depth, frames = below_floor(positions, 0.1, "Z")
+    assert depth == pytest.approx(2.0) and frames == 1
+    assert below_floor(positions, 0.1, "Y") == (pytest.approx(10.0), 5)  # Y holds 0: all 10 cm under
+
+
+def test_z_up_walk_gives_the_same_contacts():
+    motion, truth = synthetic_walk(120.0)
+    turn = np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0]], float)  # +90° about X: Y-up -> Z-up
+    zup = dataclasses.replace(motion, offsets=motion.offsets @ turn.T,
+                              root_translation=motion.root_translation @ turn.T,
+                              joint_translations=motion.joint_translations @ turn.T, up_axis="Z")
+    assert np.allclose(joint_positions(zup)[..., 2], joint_positions(motion)[..., 1])
+    a, b = detect_contacts(motion), detect_contacts(zup)
+    assert np.array_equal(a.contact, b.contact) and b.up == "Z" and b.floor == pytest.approx(a.floor)

@@ -11,8 +11,9 @@
 
 from usdmotion.ops.contacts.detect import (ContactThresholds, FootContacts, contact_joints, contact_signals,
                                            contacts_on_rig, detect_contacts)
-from usdmotion.ops.contacts.metrics import (FootMetrics, floating, floor_penetration, foot_metrics, foot_skate,
-                                            motion_foot_metrics)
+from usdmotion.ops.contacts.metrics import (FootMetrics, below_floor, floating, floor_penetration, foot_metrics,
+                                            foot_skate, motion_foot_metrics)
 
-__all__ = ["ContactThresholds", "FootContacts", "FootMetrics", "contact_joints", "contact_signals", "contacts_on_rig",
-           "detect_contacts", "floating", "floor_penetration", "foot_metrics", "foot_skate", "motion_foot_metrics"]
+__all__ = ["ContactThresholds", "FootContacts", "FootMetrics", "below_floor", "contact_joints", "contact_signals",
+           "contacts_on_rig", "detect_contacts", "floating", "floor_penetration", "foot_metrics", "foot_skate",
+           "motion_foot_metrics"]

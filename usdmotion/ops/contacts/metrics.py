@@ -13,6 +13,7 @@ its joint indices, floor and clearances with :func:`dataclasses.replace`).
 * **Floor penetration**: depth of a contact joint below its planted level
   (``floor + clearance``) in any frame, cm: the maximum, and the number of frames in
   which any contact joint is deeper than ``tolerance`` (default 1 mm).
+* **Below the floor** (:func:`below_floor`): any joint under the floor plane, cm.
 * **Floating**: contact frames in which the joint is more than ``float_height``
   (default 2 cm) above its planted level: their share of all contact frames.
 """
@@ -102,6 +103,16 @@ def floor_penetration(positions: np.ndarray, contacts: FootContacts,
         return 0.0, 0
     depth = np.maximum(-above, 0.0)
     return float(depth.max()), int(np.count_nonzero((depth > tolerance).any(axis=1)))
+
+
+def below_floor(positions: np.ndarray, floor: float, up: str) -> tuple[float, int]:
+    """``(max depth cm >= 0, frames)`` of *any* joint below the floor plane itself (no clearance),
+    positions ``(F, J, 3)`` in metres: the "no joint under the floor" check of a whole body."""
+    h = np.asarray(positions, float)[..., UP_INDEX[up]] - floor
+    if h.size == 0:
+        return 0.0, 0
+    depth = np.maximum(-h.min(axis=1), 0.0) * 100.0
+    return float(depth.max()), int(np.count_nonzero(depth > PENETRATION_TOLERANCE_CM))
 
 
 def floating(positions: np.ndarray, contacts: FootContacts,
