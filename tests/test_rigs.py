@@ -169,3 +169,13 @@ def test_mapped_points_sit_at_the_same_height_of_the_body(shared_file, rigs):
         lateral = np.abs(rest[mapped, 0]) > 0.05 * height  # and on the same side of the body
         assert np.all((np.sign(rest[mapped, 0]) == np.sign(src_rest[src[mapped], 0]))[lateral]), rig
         assert lateral.sum() >= 12, rig
+
+
+def test_body_points_are_never_marked(rigs):
+    biped = rigs["biped"]
+    kinds = joint_kinds(rig_profiles()["biped"], biped.joint_names)
+    assert "Bip01 HeadNub" not in kinds and "Bip01 L Toe0Nub" not in kinds  # head top, toe tip
+    assert kinds["Bip01 L Finger2Nub"] == "helper"
+    names = biped.joint_names
+    triples = {names[j]: names[b] for j, _, b in bend_triples(biped)}
+    assert triples["Bip01 Head"] == "Bip01 HeadNub" and triples["Bip01 L Toe0"] == "Bip01 L Toe0Nub"

@@ -209,13 +209,18 @@ JOINT_KINDS = ("twist", "floor root", "hips root", "helper")
 
 def joint_kinds(profile: dict, names: Iterable[str]) -> dict[str, str]:
     """Joint name → kind (one of :data:`JOINT_KINDS`) for the joints of ``names`` that
-    ``profile`` marks as twist segments, root bones or helpers (namespaces ignored)."""
+    ``profile`` marks as twist segments, root bones or helpers (namespaces ignored); a joint
+    the profile names as a body point (Biped's ``Bip01 HeadNub`` head top) is never marked."""
+    names = list(names)
     twist = [re.compile(p) for p in profile.get("twist", ())]
     helpers = [re.compile(p) for p in profile.get("helpers", ())]
     roots = profile.get("roots", {})
+    body = set((profile_joints(profile, names) or {}).values())
     out = {}
     for name in names:
         bare = strip_namespace(name)
+        if name in body:
+            continue
         if bare in roots:
             out[name] = f"{roots[bare]} root"
         elif any(p.fullmatch(bare) for p in twist):
