@@ -172,6 +172,8 @@ def test_json_round_trip_validates_against_the_schema(tmp_path):
     (lambda d: d["joints"][0].update(name="Nope"), r"/joints: the motion has no joint named 'Nope'"),
     (lambda d: d.update(frames=7), r"/frames: the contacts are for 7 frames, the motion has 480"),
     (lambda d: d.update(up_axis="X"), r"/up_axis: 'X' is not one of"),
+    (lambda d: d.update(frames=480.0, joints=[dict(d["joints"][0], intervals=[[3.0, 1.0]])]), r"\[3, 1\] is not"),
+    (lambda d: d.update(thresholds=dict(d["thresholds"], speed_exit=0.01)), r"/thresholds: the exit thresholds"),
 ])
 def test_bad_contacts_files_are_refused_with_the_path(tmp_path, change, message):
     motion, _ = synthetic_walk(120.0)
@@ -290,3 +292,36 @@ def test_z_up_walk_gives_the_same_contacts():
     assert np.allclose(joint_positions(zup)[..., 2], joint_positions(motion)[..., 1])
     a, b = detect_contacts(motion), detect_contacts(zup)
     assert np.array_equal(a.contact, b.contact) and b.up == "Z" and b.floor == pytest.approx(a.floor)
+
+
+def test_contacts_files_never_crash_the_reader(tmp_path):
+    """Random edits of a valid contacts file: read back, or refused with one InputError."""
+    from hypothesis import HealthCheck, given, settings
+    from hypothesis import strategies as st
+
+    motion, _ = synthetic_walk(30.0, seconds=1.0)
+    path = tmp_path / "c.json"
+    write_contacts_json(detect_contacts(motion), path)
+    valid = json.loads(path.read_text())
+    values = st.one_of(st.none(), st.booleans(), st.integers(-10**6, 10**6), st.floats(allow_nan=False),
+                       st.text(max_size=5), st.lists(st.integers(-5, 40), max_size=3))
+    keys = st.sampled_from(["frames", "fps", "floor_m", "up_axis", "version", "thresholds", "joints", "junk"])
+    joint_keys = st.sampled_from(["name", "part", "clearance_m", "intervals", "contacts"])
+
+    @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+    @given(top=st.dictionaries(keys, values, max_size=2), joint=st.dictionaries(joint_keys, values, max_size=2),
+           speed=st.floats(allow_nan=False, allow_infinity=False))
+    def check(top, joint, speed):
+        doc = json.loads(json.dumps(valid))
+        doc.update(top)
+        if isinstance(doc.get("joints"), list) and doc["joints"] and isinstance(doc["joints"][0], dict):
+            doc["joints"][0].update(joint)
+        if isinstance(doc.get("thresholds"), dict):
+            doc["thresholds"]["speed_enter"] = speed
+        path.write_text(json.dumps(doc))
+        try:
+            read_contacts_json(path, motion)
+        except InputError as exc:
+            assert "\n" not in str(exc) and str(exc).startswith(str(path))
+
+    check()

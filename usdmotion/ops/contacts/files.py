@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from usdmotion.constants import MAX_FRAMES
 from usdmotion.errors import InputError, OutputError
 from usdmotion.io.atomic import atomic_output
 from usdmotion.motion import Motion
@@ -63,16 +64,18 @@ def read_contacts_json(path: str | os.PathLike, motion: Motion | None = None) ->
     from usdmotion.schemas import load_document
 
     doc = load_document(path, "contacts")
-    frames, joints = doc["frames"], doc["joints"]
+    frames, joints = int(doc["frames"]), doc["joints"]  # JSON Schema's integers include 480.0
     names = tuple(j["name"] for j in joints)
     if len(set(names)) != len(names):
         raise InputError(path, "/joints: a joint is listed twice")
     if motion is not None:
         _check_fits(path, doc, names, motion)
+    elif frames > MAX_FRAMES:
+        raise InputError(path, f"/frames: {frames} frames; at most {MAX_FRAMES} are supported")
     contact = np.zeros((frames, len(joints)), bool)
     for c, joint in enumerate(joints):
         last = 0
-        for k, (start, stop) in enumerate(joint["intervals"]):
+        for k, (start, stop) in enumerate((int(a), int(b)) for a, b in joint["intervals"]):
             if not last <= start < stop <= frames:
                 raise InputError(path, f"/joints/{c}/intervals/{k}: [{start}, {stop}] is not a sorted, "
                                        f"non-overlapping frame range within 0..{frames}")
@@ -82,7 +85,10 @@ def read_contacts_json(path: str | os.PathLike, motion: Motion | None = None) ->
         indices = np.array([motion.joint_names.index(n) for n in names], np.int64)
     else:
         indices = np.full(len(names), -1, np.int64)
-    thresholds = ContactThresholds(**doc["thresholds"]) if "thresholds" in doc else None
+    try:
+        thresholds = ContactThresholds(**doc["thresholds"]) if "thresholds" in doc else None
+    except ValueError as exc:
+        raise InputError(path, f"/thresholds: {exc}") from None
     return FootContacts(names, indices, tuple(j["part"] for j in joints), contact, float(doc["floor_m"]),
                         np.array([j["clearance_m"] for j in joints], float), doc["up_axis"], float(doc["fps"]),
                         thresholds)
