@@ -325,3 +325,19 @@ def test_contacts_files_never_crash_the_reader(tmp_path):
             assert "\n" not in str(exc) and str(exc).startswith(str(path))
 
     check()
+
+
+def test_feet_of_a_rig_no_profile_knows_come_from_the_roles():
+    from usdmotion.skeleton_names import detect_profile
+
+    motion, _ = synthetic_walk(120.0)
+    renamed = dataclasses.replace(motion, joint_names=tuple(
+        n[4:] + ".L" if n.startswith("Left") else n[5:] + ".R" if n.startswith("Right") else n
+        for n in motion.joint_names))
+    assert detect_profile(motion.joint_names) == "humanik" and detect_profile(renamed.joint_names) is None
+    a, b = detect_contacts(motion), detect_contacts(renamed)
+    assert b.joints == ("Foot.L", "ToeBase.L", "Foot.R", "ToeBase.R")
+    assert np.array_equal(a.indices, b.indices) and np.array_equal(a.contact, b.contact)
+    with pytest.raises(InputError, match="cannot find the feet for contacts: cannot find the joints for role"):
+        detect_contacts(dataclasses.replace(motion, joint_names=tuple(f"j{k}" for k in range(motion.n_joints))),
+                        source="x.bvh")

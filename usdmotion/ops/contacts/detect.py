@@ -189,29 +189,13 @@ def contact_joints(motion: Motion, source: str | None = None) -> tuple[tuple[str
     Raises:
         InputError: no ankles could be found (``source`` names the file).
     """
-    from usdmotion.kinematics import rest_positions
-    from usdmotion.skeleton_names import (SIDES, children_map, detect_profile, distal_joint, profile_joints,
-                                          rest_tolerance, rig_profiles)
+    from usdmotion.skeleton_names import SIDES, detect_profile, profile_joints, rig_profiles
 
     index = {n: j for j, n in enumerate(motion.joint_names)}
     profile = detect_profile(motion.joint_names)
     points = {} if profile is None else profile_joints(rig_profiles()[profile], motion.joint_names)
     if not all(f"{s[0]}_foot" in points for s in SIDES):
-        from usdmotion.ops.segment.roles import find_roles
-
-        try:
-            roles = find_roles(motion, source=source)
-        except InputError as exc:
-            raise InputError(source, f"cannot find the feet for contacts: {exc.message}") from None
-        rest = rest_positions(motion)
-        kids, eps = children_map(motion.parents), rest_tolerance(rest)
-        points = {}
-        for side in SIDES:
-            ankle = roles[f"{side}_ankle"]
-            points[f"{side[0]}_foot"] = motion.joint_names[ankle]
-            toe = distal_joint(kids, rest, ankle, eps)
-            if toe is not None:
-                points[f"{side[0]}_toe"] = motion.joint_names[toe]
+        points = _feet_from_roles(motion, source)
     parts, indices = [], []
     for side in SIDES:
         for part, point in CONTACT_POINTS:
@@ -220,6 +204,28 @@ def contact_joints(motion: Motion, source: str | None = None) -> tuple[tuple[str
                 parts.append(f"{side}_{part}")
                 indices.append(index[name])
     return tuple(parts), np.asarray(indices, np.int64)
+
+
+def _feet_from_roles(motion: Motion, source: str | None) -> dict[str, str]:
+    """``{"l_foot": ankle, "l_toe": next joint down, ...}`` from the segmentation roles."""
+    from usdmotion.kinematics import rest_positions
+    from usdmotion.ops.segment.roles import find_roles
+    from usdmotion.skeleton_names import SIDES, children_map, distal_joint, rest_tolerance
+
+    try:
+        roles = find_roles(motion, source=source)
+    except InputError as exc:
+        raise InputError(source, f"cannot find the feet for contacts: {exc.message}") from None
+    rest = rest_positions(motion)
+    kids, eps = children_map(motion.parents), rest_tolerance(rest)
+    points = {}
+    for side in SIDES:
+        ankle = roles[f"{side}_ankle"]
+        points[f"{side[0]}_foot"] = motion.joint_names[ankle]
+        toe = distal_joint(kids, rest, ankle, eps)
+        if toe is not None:
+            points[f"{side[0]}_toe"] = motion.joint_names[toe]
+    return points
 
 
 # ------------------------------------------------------------------------- detection
