@@ -179,3 +179,22 @@ def test_body_points_are_never_marked(rigs):
     names = biped.joint_names
     triples = {names[j]: names[b] for j, _, b in bend_triples(biped)}
     assert triples["Bip01 Head"] == "Bip01 HeadNub" and triples["Bip01 L Toe0"] == "Bip01 L Toe0Nub"
+
+
+@pytest.mark.parametrize("rig", sorted(EXPECTED))
+def test_names_as_dcc_tools_write_them_to_usd_are_recognised_alike(rigs, rig):
+    """Blender & co. write ``Bip01 L Thigh`` / ``DEF-thigh.L`` as USD paths ``Bip01_L_Thigh`` / ``DEF_thigh_L``."""
+    import dataclasses
+    import re
+
+    motion = rigs[rig]
+    safe = dataclasses.replace(motion, joint_names=tuple(re.sub(r"[^0-9A-Za-z_]", "_", n.split(":")[-1])
+                                                         for n in motion.joint_names))
+    rename = dict(zip(motion.joint_names, safe.joint_names))
+    assert detect_profile(safe.joint_names) == EXPECTED[rig][0]
+    assert {k: safe.joint_names[v] for k, v in find_roles(safe).items()} == \
+        {k: rename[motion.joint_names[v]] for k, v in find_roles(motion).items()}
+    assert find_landmarks(safe)[0] == find_landmarks(motion)[0]
+    assert np.array_equal(bend_triples(safe), bend_triples(motion))
+    assert joint_kinds(rig_profiles()[EXPECTED[rig][0]], safe.joint_names) == \
+        {rename[k]: v for k, v in joint_kinds(rig_profiles()[EXPECTED[rig][0]], motion.joint_names).items()}

@@ -162,15 +162,31 @@ def names_by_key(names: Iterable[str], key: Callable[[str], str]) -> dict[str, s
     return table
 
 
+_UNSAFE = re.compile(r"[^0-9A-Za-z_]")
+
+
+def safe_key(name: str) -> str:
+    """``name`` with every character a USD identifier cannot hold made ``_``: how DCC tools
+    write ``Bip01 L Thigh``, ``DEF-thigh.L`` as USD joint paths (``Bip01_L_Thigh``, ``DEF_thigh_L``).
+    Rig profiles and presets match names by it."""
+    return _UNSAFE.sub("_", name)
+
+
+def _profile_key(name: str) -> str:
+    return safe_key(strip_namespace(name))
+
+
 def profile_joints(profile: dict, names: Iterable[str]) -> dict[str, str] | None:
-    """Canonical point → joint name of ``names`` if the skeleton fits ``profile``, else ``None``."""
-    table = names_by_key(names, strip_namespace)
+    """Canonical point → joint name of ``names`` if the skeleton fits ``profile``, else ``None``.
+
+    Names are compared without namespace and by :func:`safe_key`."""
+    table = names_by_key(names, _profile_key)
     if not all(_has_any(table, s) for s in profile["signature"]):
         return None
     resolved = {}
     for point, candidates in profile["joints"].items():
         candidates = [candidates] if isinstance(candidates, str) else candidates
-        hit = next((table[c] for c in candidates if c in table), None)
+        hit = next((table[_profile_key(c)] for c in candidates if _profile_key(c) in table), None)
         if hit is not None:
             resolved[point] = hit
         elif point not in profile["optional"]:
@@ -179,7 +195,7 @@ def profile_joints(profile: dict, names: Iterable[str]) -> dict[str, str] | None
 
 
 def _has_any(table: Mapping[str, str], candidates: str | Sequence[str]) -> bool:
-    return any(c in table for c in ([candidates] if isinstance(candidates, str) else candidates))
+    return any(_profile_key(c) in table for c in ([candidates] if isinstance(candidates, str) else candidates))
 
 
 def detect_profile(names: Iterable[str]) -> str | None:
@@ -214,15 +230,15 @@ def joint_kinds(profile: dict, names: Iterable[str]) -> dict[str, str]:
     names = list(names)
     twist = [re.compile(p) for p in profile.get("twist", ())]
     helpers = [re.compile(p) for p in profile.get("helpers", ())]
-    roots = profile.get("roots", {})
+    roots = {_profile_key(k): v for k, v in profile.get("roots", {}).items()}
     body = set((profile_joints(profile, names) or {}).values())
     out = {}
     for name in names:
         bare = strip_namespace(name)
         if name in body:
             continue
-        if bare in roots:
-            out[name] = f"{roots[bare]} root"
+        if _profile_key(name) in roots:
+            out[name] = f"{roots[_profile_key(name)]} root"
         elif any(p.fullmatch(bare) for p in twist):
             out[name] = "twist"
         elif any(p.fullmatch(bare) for p in helpers):
@@ -329,13 +345,26 @@ def preset_named(kind: str, name: str) -> RigPreset | None:
 def fitting_preset(kind: str, names: Iterable[str], keys: Sequence[str],
                    parts: Mapping[str, str]) -> tuple[RigPreset, dict[str, str]] | None:
     """The first ``kind`` preset whose joints for ``keys`` and whose signature all exist
-    in ``names`` (exact names), with ``key → joint name``; ``None`` if none fits."""
+    in ``names`` (exact names, or the same :func:`safe_key`), with ``key → joint name`` of
+    ``names``; ``None`` if none fits."""
+    names = list(names)
     present = set(names)
     for preset in rig_presets(kind):
-        joints = preset.joints(keys, parts)
-        if set(joints.values()) | set(preset.signature) <= present:
+        joints = actual_names(preset.joints(keys, parts), names)
+        signature = actual_names({n: n for n in preset.signature}, names)
+        if set(joints.values()) | set(signature.values()) <= present:
             return preset, joints
     return None
+
+
+def actual_names(wanted: Mapping[str, str], names: Iterable[str]) -> dict[str, str]:
+    """``wanted`` (key → exact joint name of a preset) with each name replaced by the joint of
+    ``names`` that has the same :func:`safe_key` (``Bip01_L_Thigh`` for ``Bip01 L Thigh``);
+    names with no such joint stay as they are."""
+    names = list(names)
+    present = set(names)
+    table = names_by_key(names, safe_key)
+    return {k: n if n in present else table.get(safe_key(n), n) for k, n in wanted.items()}
 
 
 # ------------------------------------------------------------------------- hierarchy
