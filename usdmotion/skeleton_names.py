@@ -8,8 +8,12 @@ body-segment landmarks (:mod:`usdmotion.anthropometry`) and automatic retargetin
   :func:`parse_side` splits a name into side and lower-case base
   (``mixamorig:LeftForeArm`` → ``("left", "forearm")``, ``lShldr`` → ``("left", "shldr")``,
   ``Knee.R`` → ``("right", "knee")``, ``CC_Base_L_Calf`` → ``("left", "calf")``);
-  :func:`normalise_name` is the comparable key that
-  joint maps match names by.
+  :func:`normalise_name` is the comparable key that joint maps match names by;
+  :func:`safe_key` the one rig profiles and presets match by (``Bip01_L_Thigh`` as a DCC
+  writes ``Bip01 L Thigh`` into USD).
+* **Marks.** :func:`joint_kinds` / :func:`marked_joints`: the twist, root and helper bones
+  a rig profile marks (no body points: joint maps leave them out and say why, bend angles
+  skip them).
 * **Limb words.** :data:`ELBOW_WORDS` and :data:`KNEE_WORDS`: base names of the middle
   joint of an arm and a leg (``forearm``, ``lowerarm``, ``radius``..., ``leg``, ``shin``,
   ``tibia``...); :data:`LIMB_WORDS` adds the other limb words a one-letter side prefix
@@ -88,7 +92,10 @@ def parse_side(name: str) -> tuple[str | None, str]:
     separator (``Knee.R``, ``LowerArm_L``); a leading ``l``/``r`` followed by a capital or
     a separator (``lShldr``, ``L_hand``) or by a limb word of :data:`LIMB_WORDS` (``rtibia``,
     ``lhand``, ``Lforearm``; capitals after the word are ignored, ``lhandIK``), so
-    ``lowerback`` and ``leg`` stay side-less.
+    ``lowerback`` and ``leg`` stay side-less; last, one side word between separators
+    inside the name, the base being what follows it (``CC_Base_L_Calf`` → ``("left",
+    "calf")``, ``Bip01 R Forearm`` → ``("right", "forearm")``; not End Sites,
+    ``Hand_L_End`` stays side-less as before).
     """
     name = strip_namespace(name)
     if m := _SIDE_WORD_FIRST.match(name):
