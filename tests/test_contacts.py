@@ -341,3 +341,28 @@ def test_feet_of_a_rig_no_profile_knows_come_from_the_roles():
     with pytest.raises(InputError, match="cannot find the feet for contacts: cannot find the joints for role"):
         detect_contacts(dataclasses.replace(motion, joint_names=tuple(f"j{k}" for k in range(motion.n_joints))),
                         source="x.bvh")
+
+
+def test_a_rig_with_heels_gets_heel_contacts(monkeypatch):
+    import copy
+
+    from usdmotion import skeleton_names
+    from usdmotion.motion import Motion
+
+    motion, truth = synthetic_walk(120.0)
+    n, j = motion.n_frames, motion.n_joints
+    feet = [motion.joint_index("LeftFoot"), motion.joint_index("RightFoot")]
+    heel = np.array([0.0, -0.06, -0.05])  # 6 cm below and 5 cm behind the ankle: on the floor with it
+    translations = np.concatenate([motion.joint_translations, np.broadcast_to(heel, (n, 2, 3))], axis=1)
+    rotations = np.concatenate([motion.rotations, motion.rotations[:, :2]], axis=1)
+    with_heels = Motion(motion.joint_names + ("LeftHeel", "RightHeel"), np.concatenate([motion.parents, feet]),
+                        np.concatenate([motion.offsets, [heel, heel]]), rotations, motion.root_translation, motion.fps,
+                        joint_translations=translations, meters_per_unit=1.0)
+    profiles = copy.deepcopy(skeleton_names.rig_profiles())
+    profiles["humanik"]["joints"].update(l_heel="LeftHeel", r_heel="RightHeel")
+    monkeypatch.setattr(skeleton_names, "rig_profiles", lambda: profiles)
+    found = detect_contacts(with_heels)
+    assert found.parts == ("left_heel", "left_ankle", "left_toe", "right_heel", "right_ankle", "right_toe")
+    assert found.joints[0] == "LeftHeel" and found.indices[0] == j
+    for heel_c, ankle in ((0, "LeftFoot"), (3, "RightFoot")):
+        assert np.abs(found.intervals(heel_c) - runs(truth[ankle])).max() <= 2
