@@ -211,13 +211,15 @@ def test_cli_table_json_and_plot(tmp_path, capsys):
     (["{walk}", "--height-enter", "0.2"], r"the exit thresholds must be at least the enter thresholds"),
     (["{walk}", "--plot", "{tmp}/c.gif"], r"unknown image format '\.gif'"),
     (["{walk}", "--floor", "nan"], r"floor height must be a finite number"),
+    (["{walk}", "--plot", "{tmp}/walk.bvh.png", "--json", "{walk}"], r"walk\.bvh: output would overwrite the input"),
 ])
 def test_cli_bad_input_one_line_exit_2_nothing_written(tmp_path, capsys, args, message):
     motion, _ = synthetic_walk(120.0)
     write_motion(motion, tmp_path / "walk.bvh")
     args = [a.format(walk=tmp_path / "walk.bvh", tmp=tmp_path) for a in args]
     before = set(tmp_path.iterdir())
-    assert main(["contacts", *args, "--units", "m", "--json", str(tmp_path / "c.json")]) == 2
+    json_out = [] if "--json" in args else ["--json", str(tmp_path / "c.json")]
+    assert main(["contacts", *args, "--units", "m", *json_out]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("usdmotion: error: ")
     assert __import__("re").search(message, err[0]), err[0]

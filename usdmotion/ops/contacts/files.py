@@ -34,6 +34,16 @@ def contact_summary(contacts: FootContacts) -> list[dict]:
     return rows
 
 
+def summary_table(contacts: FootContacts, file: str) -> str:
+    """The table ``usdmotion contacts`` prints: a header line, then joint, part, contacts,
+    total and mean contact time per contact joint."""
+    lines = [f"{file}: {contacts.n_frames} frames at {contacts.fps:g} fps, floor {contacts.floor:.3f} m "
+             f"({contacts.up}-up)", f"{'joint':<24} {'part':<12} {'contacts':>8} {'time s':>8} {'mean s':>8}"]
+    lines += [f"{r['name']:<24} {r['part']:<12} {r['contacts']:>8} {r['contact_time_s']:>8.3f} "
+              f"{r['mean_duration_s']:>8.3f}" for r in contact_summary(contacts)]
+    return "\n".join(lines)
+
+
 def contacts_document(contacts: FootContacts, file: str | None = None) -> dict:
     """The JSON document of ``contacts`` (valid against the ``contacts`` schema)."""
     joints = [{"name": r["name"], "part": r["part"], "clearance_m": float(contacts.clearance[c]),
