@@ -35,7 +35,7 @@ def contacts(
     import json
 
     from usdmotion.errors import OutputError
-    from usdmotion.ops.contacts import ContactThresholds, detect_contacts
+    from usdmotion.ops.contacts import ContactThresholds, detect_contacts, motion_foot_metrics
     from usdmotion.ops.contacts.files import (contacts_document, plot_contacts, plot_path, summary_table,
                                               write_contacts_json)
 
@@ -57,3 +57,4 @@ def contacts(
         typer.echo(json.dumps(contacts_document(found, str(source)), indent=1))
         return
     typer.echo(summary_table(found, str(source)))
+    typer.echo(motion_foot_metrics(motion, found).describe())

@@ -62,6 +62,13 @@ class FootMetrics:
     def as_dict(self) -> dict[str, float | int]:
         return {k: getattr(self, k) for k in self.__dataclass_fields__}
 
+    def describe(self) -> str:
+        """One line: ``foot skate 8.66 cm/s mean (max 49.6; 87 % of planted steps > 2 cm/s), ...``."""
+        return (f"foot skate {self.skate_mean_cm_s:.2f} cm/s mean (max {self.skate_max_cm_s:.1f}; "
+                f"{100 * self.skate_share:.0f} % of planted steps > {SLIDE_SPEED_CM_S:g} cm/s), "
+                f"penetration {self.penetration_max_cm:.2f} cm max ({self.penetration_frames} frames), "
+                f"floating {100 * self.floating_share:.0f} % of contact frames (> {FLOAT_HEIGHT_CM:g} cm)")
+
 
 def _contact_positions(positions: np.ndarray, contacts: FootContacts) -> np.ndarray:
     positions = np.asarray(positions, float)
