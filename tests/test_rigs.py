@@ -198,3 +198,22 @@ def test_names_as_dcc_tools_write_them_to_usd_are_recognised_alike(rigs, rig):
     assert np.array_equal(bend_triples(safe), bend_triples(motion))
     assert joint_kinds(rig_profiles()[EXPECTED[rig][0]], safe.joint_names) == \
         {rename[k]: v for k, v in joint_kinds(rig_profiles()[EXPECTED[rig][0]], motion.joint_names).items()}
+
+
+def test_smplx_lower_case_names_are_smpl_too(rigs):
+    import dataclasses
+
+    smpl = rigs["smpl"]
+    words = {"L": "left", "R": "right"}
+
+    def smplx(name: str) -> str:
+        side, _, rest = name.partition("_")
+        return f"{words[side]}_{rest.lower()}" if side in words and rest else name.lower()
+
+    renamed = dataclasses.replace(smpl, joint_names=tuple(smplx(n) for n in smpl.joint_names))
+    assert "left_knee" in renamed.joint_names and "pelvis" in renamed.joint_names
+    assert detect_profile(renamed.joint_names) == "smpl"
+    points = profile_joints(rig_profiles()["smpl"], renamed.joint_names)
+    assert points["l_shin"] == "left_knee" and points["l_upper_arm"] == "left_shoulder" and points["hips"] == "pelvis"
+    roles = {k: renamed.joint_names[v] for k, v in find_roles(renamed).items()}
+    assert roles["left_knee"] == "left_knee" and roles["right_wrist"] == "right_wrist" and roles["root"] == "pelvis"
