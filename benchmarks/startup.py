@@ -4,7 +4,13 @@
 
 Each command runs as a new process (what a user waits for), ``--repeat`` times after one
 warm-up; the table shows medians and each command's time over the bare interpreter's, in
-the same run. Inputs: the bundled CMU walk tiled to 1,730 frames (1.3 MB, for ``info``)
+the same run. Modules run from bytecode, as from an installed package (pip compiles it at
+install): the processes write and read it under a temporary ``PYTHONPYCACHEPREFIX``, so
+the warm-up compiles and ``PYTHONDONTWRITEBYTECODE`` in the caller's environment does not
+make every run recompile the package (about 0.02 s; ``--no-bytecode`` measures that way).
+A second table splits the ``convert`` → USDC process's import time (``-X importtime``,
+self times summed by top-level package, one extra run; its total exceeds the timed
+runs' because of the instrumentation). Inputs: the bundled CMU walk tiled to 1,730 frames (1.3 MB, for ``info``)
 and to 5,000 frames (31 joints, for ``convert`` to .usdc and .bvh). Goals (issue 11):
 ``info`` ≤ 0.30 s and ``convert`` to USDC ≤ 0.40 s whole process. The modules each command
 imported are listed too (``-X importtime`` would slow the run; ``sys.modules`` at exit).
@@ -57,18 +63,37 @@ def imported(cli_args: list[str], env: dict | None = None) -> list[str]:
     return json.loads(line.split(" ", 1)[1].replace("'", '"'))
 
 
+def import_breakdown(cli_args: list[str], env: dict) -> dict[str, float]:
+    """Seconds of import (self times) by top-level package of one ``-X importtime`` run."""
+    done = subprocess.run([PYTHON, "-X", "importtime", "-c", CLI, *cli_args], capture_output=True, text=True,
+                          env=env, cwd=tempfile.gettempdir())
+    totals: dict[str, float] = {}
+    for line in done.stderr.splitlines():
+        if line.startswith("import time:") and "|" in line and not line.rstrip().endswith("package"):
+            self_us, _, name = (part.strip() for part in line.removeprefix("import time:").split("|"))
+            top = name.split(".")[0]
+            totals[top] = totals.get(top, 0.0) + int(self_us) / 1e6
+    return totals
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=5)
     parser.add_argument("--tree", action="append", default=[], metavar="LABEL=PATH",
                         help="also run the commands with PYTHONPATH=PATH (another checkout), labelled LABEL")
+    parser.add_argument("--no-bytecode", action="store_true",
+                        help="keep the caller's PYTHONDONTWRITEBYTECODE (every run compiles the package)")
     args = parser.parse_args()
-    trees = {"": {**os.environ, "PYTHONPATH": str(REPO)}}
-    for tree in args.tree:
-        label, path = tree.split("=", 1)
-        trees[f"{label}: "] = {**os.environ, "PYTHONPATH": path}
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
+        base_env = dict(os.environ)
+        if not args.no_bytecode:
+            base_env.pop("PYTHONDONTWRITEBYTECODE", None)
+            base_env["PYTHONPYCACHEPREFIX"] = str(tmp / "pycache")
+        trees = {"": {**base_env, "PYTHONPATH": str(REPO)}}
+        for tree in args.tree:
+            label, path = tree.split("=", 1)
+            trees[f"{label}: "] = {**base_env, "PYTHONPATH": path}
         info_file = tiled_bvh(WALK, 1730, tmp / "walk_1730.bvh")
         convert_file = tiled_bvh(WALK, 5000, tmp / "walk_5000.bvh")
         cases = {
@@ -83,7 +108,7 @@ def main() -> None:
             for label, env in trees.items():
                 if name.startswith("python"):
                     if not label:
-                        results[name] = whole_process(cli_args, args.repeat)
+                        results[name] = whole_process(cli_args, args.repeat, base_env)
                     continue
                 try:
                     results[label + name] = whole_process([PYTHON, "-c", CLI, *cli_args], args.repeat, env)
@@ -93,13 +118,24 @@ def main() -> None:
                     print(f"{label}{name}: {failed}", file=sys.stderr)
                     continue
                 results[label + name]["imports"] = imported(cli_args, env)
+        breakdown = {label: import_breakdown(cases["usdmotion convert 5000 frames -> .usdc"], env)
+                     for label, env in trees.items()}
     base = results["python -c pass"]["median_s"]
     rows = [[name, f"{r['median_s']:.3f}", f"{r['min_s']:.3f}", f"{r['median_s'] / base:.1f}x",
              " ".join(r.get("imports", []))] for name, r in results.items()]
-    print_table(f"whole-process time, median of {args.repeat} (interpreter: {PYTHON})",
+    print_table(f"whole-process time, median of {args.repeat}, {'from source' if args.no_bytecode else 'from bytecode'}, "
+                f"1-min load average {os.getloadavg()[0]:.1f} (interpreter: {PYTHON})",
                 ["command", "median s", "min s", "over python", "heavy modules imported"], rows)
-    path = write_results("startup", {"repeat": args.repeat, "trees": args.tree, "goals_s": {"info": 0.30, "convert_usdc": 0.40},
-                                     "results": results})
+    groups = sorted({g for b in breakdown.values() for g in b}, key=lambda g: -max(b.get(g, 0) for b in breakdown.values()))
+    print()
+    print_table("import time of convert -> .usdc by top-level package, s (self times, -X importtime)",
+                ["package"] + [label.rstrip(": ") or "this tree" for label in breakdown],
+                [[g] + [f"{b.get(g, 0.0):.3f}" for b in breakdown.values()] for g in groups[:12]]
+                + [["all imports"] + [f"{sum(b.values()):.3f}" for b in breakdown.values()]])
+    path = write_results("startup", {"repeat": args.repeat, "trees": args.tree, "bytecode": not args.no_bytecode,
+                                     "load_average_1min": os.getloadavg()[0],
+                                     "goals_s": {"info": 0.30, "convert_usdc": 0.40},
+                                     "results": results, "convert_usdc_import_s": breakdown})
     print(f"wrote {path}")
 
 
