@@ -73,10 +73,15 @@ def _extent(stage, root, motion) -> None:
 
 
 def _materials(stage, root) -> None:
-    from pxr import Gf, Sdf, UsdGeom, UsdShade
+    from pxr import UsdGeom
 
-    for prim in root.GetChildren():
-        if not prim.IsA(UsdGeom.Mesh) or UsdShade.MaterialBindingAPI(prim).GetDirectBindingRel().GetTargets():
+    meshes = [prim for prim in root.GetChildren() if prim.IsA(UsdGeom.Mesh)]
+    if not meshes:
+        return
+    from pxr import Gf, Sdf, UsdShade  # only here: pxr.UsdShade imports Sdr (skeleton-only stages need neither)
+
+    for prim in meshes:
+        if UsdShade.MaterialBindingAPI(prim).GetDirectBindingRel().GetTargets():
             continue
         color = UsdGeom.Mesh(prim).GetDisplayColorPrimvar().Get() if UsdGeom.Mesh(prim).GetDisplayColorPrimvar() else None
         rgb = tuple(map(float, color[0])) if color else DEFAULT_COLOR
