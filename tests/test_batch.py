@@ -134,8 +134,14 @@ def test_local_cluster_analyze_frames_dataset(library, tmp_path):
 
     out = tmp_path / "out"
     include = ("session1/**/*.bvh",)
-    result = run_batch("analyze", library, out, workers=2, include=include)
+    reports = []
+    result = run_batch("analyze", library, out, workers=2, include=include,
+                       progress=lambda done, total, message: reports.append((done, total, message)))
     assert not result.failed and len(result.rows) == len(SHARED_TAKES)
+    n = len(SHARED_TAKES)  # usdmotion.progress.Progress: (takes done, takes to run, what finished last)
+    assert reports[0] == (0, n, "batch analyze")
+    assert [r[:2] for r in reports[1:]] == [(k, n) for k in range(1, n + 1)]
+    assert sorted(r[2] for r in reports[1:]) == sorted(f"batch analyze: {row['relpath']}" for row in result.rows)
     cat = _catalogue(out).set_index("take")
     frames = pd.read_parquet(out / "frames")  # hive-partitioned by take, read directly
     assert set(frames["take"].unique()) == set(cat.index)
