@@ -27,12 +27,15 @@ from pathlib import Path
 
 import numpy as np
 
-from usdmotion.errors import OutputError, UsdReadError
+from usdmotion.errors import OutputError, UsdMotionWarning, UsdReadError
 from usdmotion.io.atomic import atomic_output
-from usdmotion.usd_diagnostics import usd_error_message
+from usdmotion.io.usd_ar import ar_quick_look_problems, finish_stage
+from usdmotion.io.usd_read import read_usd_skeleton
+from usdmotion.io.usd_skin import add_skinned_meshes
 from usdmotion.kinematics import compose_transforms, rest_pose
 from usdmotion.motion import Motion
 from usdmotion.rotations import wxyz_to_xyzw
+from usdmotion.usd_diagnostics import usd_error_message
 
 USD_EXTENSIONS = (".usd", ".usda", ".usdc", ".usdz")
 CUSTOM_KEY = "usdmotion"
@@ -183,12 +186,9 @@ def write_usd(motion: Motion, path: str | os.PathLike, name: str | None = None,
             stage = Usd.Stage.CreateNew(str(layer_path))
             skel = define_skeleton(stage, motion, root_path)
             if motion.meshes:
-                from usdmotion.io.usd_skin import add_skinned_meshes
-
                 add_skinned_meshes(stage, skel, motion, path)
             if decorate is not None:
                 decorate(stage, skel)
-            from usdmotion.io.usd_ar import finish_stage
 
             finish_stage(stage, skel, motion)
             stage.GetRootLayer().Save()
@@ -218,9 +218,6 @@ def _check_float32(motion: Motion, path: Path) -> None:
 
 def _warn_unless_ar_ready(path: Path) -> None:
     import warnings
-
-    from usdmotion.errors import UsdMotionWarning
-    from usdmotion.io.usd_ar import ar_quick_look_problems
 
     problems = ar_quick_look_problems(path)
     if problems:
@@ -268,7 +265,5 @@ def read_usd(path: str | os.PathLike, skeleton: str | None = None, resample: boo
     when the stage has several; ``resample``: read unevenly spaced samples at even steps.
     Positions are in stage units. See :mod:`usdmotion.io.usd_read`.
     """
-    from usdmotion.io.usd_read import read_usd_skeleton
-
     path = Path(path)
     return read_usd_skeleton(_open_stage(path), path, skeleton=skeleton, resample=resample)

@@ -22,6 +22,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from usdmotion.kinematics import position_bounds, rest_pose
+
 VALIDATORS = (
     "usdUtilsValidators:FileExtensionValidator", "usdUtilsValidators:MissingReferenceValidator",
     "usdUtilsValidators:PackageEncapsulationValidator", "usdUtilsValidators:RootPackageValidator",
@@ -54,8 +56,6 @@ def finish_stage(stage, skeleton, motion) -> None:
 
 def _extent(stage, root, motion) -> None:
     from pxr import Gf, UsdGeom, UsdSkel, Vt
-
-    from usdmotion.kinematics import position_bounds, rest_pose
 
     if motion.n_frames:
         lo, hi = position_bounds(motion)
