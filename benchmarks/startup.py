@@ -3,8 +3,9 @@
     .venv/bin/python benchmarks/startup.py [--repeat 5]
 
 Each command runs as a new process (what a user waits for), ``--repeat`` times after one
-warm-up; the table shows medians and each command's time over the bare interpreter's, in
-the same run. Modules run from bytecode, as from an installed package (pip compiles it at
+warm-up, the trees (``--tree``) taking turns; the table shows medians, each command's time
+over the bare interpreter's in the same run, and its CPU time (user + system, all threads:
+steadier than wall time on a loaded machine). Modules run from bytecode, as from an installed package (pip compiles it at
 install): the processes write and read it under a temporary ``PYTHONPYCACHEPREFIX``, so
 the warm-up compiles and ``PYTHONDONTWRITEBYTECODE`` in the caller's environment does not
 make every run recompile the package (about 0.02 s; ``--no-bytecode`` measures that way).
@@ -21,6 +22,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -42,18 +44,35 @@ MODULES = ("import atexit, sys\n" + NO_EDITABLE + "\n"
            "from usdmotion.cli import main; sys.exit(main(sys.argv[1:]))")
 
 
-def whole_process(args: list[str], repeat: int, env: dict | None = None) -> dict:
-    """Median/min of ``repeat`` runs of ``args`` as a new process (after one warm-up)."""
-    times = []
+def run_once(args: list[str], env: dict | None) -> tuple[float, float] | None:
+    """``(wall s, CPU s of the process: user + system, all its threads)`` of one run, None if it failed."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    start = time.perf_counter()
+    done = subprocess.run(args, capture_output=True, text=True, env=env, cwd=tempfile.gettempdir())
+    elapsed = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if done.returncode != 0:
+        print(f"{' '.join(map(str, args))} failed: {done.stderr.strip()}", file=sys.stderr)
+        return None
+    return elapsed, after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime
+
+
+def whole_processes(runs: dict[str, tuple[list[str], dict]], repeat: int) -> dict[str, dict]:
+    """Median/min wall and median CPU time of each labelled ``(args, env)`` as a new process, ``repeat``
+    times after one warm-up, the labels taking turns (a load that drifts affects them alike)."""
+    samples: dict[str, list[tuple[float, float]]] = {label: [] for label in runs}
     for i in range(repeat + 1):
-        start = time.perf_counter()
-        done = subprocess.run(args, capture_output=True, text=True, env=env, cwd=tempfile.gettempdir())
-        elapsed = time.perf_counter() - start
-        if done.returncode != 0:
-            raise SystemExit(f"{' '.join(map(str, args))} failed: {done.stderr.strip()}")
-        if i:
-            times.append(elapsed)
-    return {"median_s": statistics.median(times), "min_s": min(times), "runs": repeat}
+        for label, (args, env) in runs.items():
+            if samples[label] is None:
+                continue
+            sample = run_once(args, env)
+            if sample is None:  # e.g. --version, which an older checkout lacks
+                samples[label] = None
+            elif i:
+                samples[label].append(sample)
+    return {label: {"median_s": statistics.median(w for w, _ in s), "min_s": min(w for w, _ in s),
+                    "cpu_median_s": statistics.median(c for _, c in s), "runs": repeat}
+            for label, s in samples.items() if s is not None}
 
 
 def imported(cli_args: list[str], env: dict | None = None) -> list[str]:
@@ -103,29 +122,23 @@ def main() -> None:
             "usdmotion convert 5000 frames -> .usdc": ["convert", str(convert_file), str(tmp / "out.usdc")],
             "usdmotion convert 5000 frames -> .bvh": ["convert", str(convert_file), str(tmp / "out.bvh")],
         }
-        results = {}
+        results = whole_processes({"python -c pass": (cases.pop("python -c pass"), base_env)}, args.repeat)
         for name, cli_args in cases.items():
+            measured = whole_processes({label + name: ([PYTHON, "-c", CLI, *cli_args], env)
+                                        for label, env in trees.items()}, args.repeat)
+            if name not in measured:
+                raise SystemExit(f"{name} failed in this tree")
             for label, env in trees.items():
-                if name.startswith("python"):
-                    if not label:
-                        results[name] = whole_process(cli_args, args.repeat, base_env)
-                    continue
-                try:
-                    results[label + name] = whole_process([PYTHON, "-c", CLI, *cli_args], args.repeat, env)
-                except SystemExit as failed:  # e.g. --version, which an older checkout lacks
-                    if not label:
-                        raise
-                    print(f"{label}{name}: {failed}", file=sys.stderr)
-                    continue
-                results[label + name]["imports"] = imported(cli_args, env)
+                if label + name in measured:
+                    results[label + name] = {**measured[label + name], "imports": imported(cli_args, env)}
         breakdown = {label: import_breakdown(cases["usdmotion convert 5000 frames -> .usdc"], env)
                      for label, env in trees.items()}
     base = results["python -c pass"]["median_s"]
-    rows = [[name, f"{r['median_s']:.3f}", f"{r['min_s']:.3f}", f"{r['median_s'] / base:.1f}x",
+    rows = [[name, f"{r['median_s']:.3f}", f"{r['min_s']:.3f}", f"{r['median_s'] / base:.1f}x", f"{r['cpu_median_s']:.3f}",
              " ".join(r.get("imports", []))] for name, r in results.items()]
     print_table(f"whole-process time, median of {args.repeat}, {'from source' if args.no_bytecode else 'from bytecode'}, "
                 f"1-min load average {os.getloadavg()[0]:.1f} (interpreter: {PYTHON})",
-                ["command", "median s", "min s", "over python", "heavy modules imported"], rows)
+                ["command", "median s", "min s", "over python", "CPU s", "heavy modules imported"], rows)
     groups = sorted({g for b in breakdown.values() for g in b}, key=lambda g: -max(b.get(g, 0) for b in breakdown.values()))
     print()
     print_table("import time of convert -> .usdc by top-level package, s (self times, -X importtime)",
