@@ -34,7 +34,6 @@ from usdmotion.io.usd_read import read_usd_skeleton
 from usdmotion.io.usd_skin import add_skinned_meshes
 from usdmotion.kinematics import compose_transforms, rest_pose
 from usdmotion.motion import Motion
-from usdmotion.rotations import wxyz_to_xyzw
 from usdmotion.usd_diagnostics import usd_error_message
 
 USD_EXTENSIONS = (".usd", ".usda", ".usdc", ".usdz")
@@ -131,12 +130,13 @@ def define_skeleton(stage, motion: Motion, root_path: str):
     if motion.n_frames == 0:
         translations_attr.Set(Vt.Vec3fArray.FromNumpy(motion.offsets.astype(np.float32)))
         rotations_attr.Set(Vt.QuatfArray.FromNumpy(np.tile(np.float32([0, 0, 0, 1]), (motion.n_joints, 1))))
+    set_sample, vec3f, quatf = layer.SetTimeSample, Vt.Vec3fArray.FromNumpy, Vt.QuatfArray.FromNumpy
     with Sdf.ChangeBlock():
         for start in range(0, motion.n_frames, _CHUNK_FRAMES):  # float32 copies of one chunk at a time
             translations, rotations = _float32_samples(motion, start, start + _CHUNK_FRAMES)
-            for k in range(translations.shape[0]):  # one time sample per frame: the USD API's unit
-                layer.SetTimeSample(t_path, float(start + k), Vt.Vec3fArray.FromNumpy(translations[k]))
-                layer.SetTimeSample(r_path, float(start + k), Vt.QuatfArray.FromNumpy(rotations[k]))
+            for k, (t, r) in enumerate(zip(translations, rotations), start):  # one time sample per frame:
+                set_sample(t_path, float(k), vec3f(t))                          # the USD API's unit
+                set_sample(r_path, float(k), quatf(r))
     return skel
 
 
@@ -153,7 +153,10 @@ def _float32_samples(motion: Motion, start: int, stop: int) -> tuple[np.ndarray,
         translations = np.empty((stop - start, motion.n_joints, 3), np.float32)
         translations[:] = motion.offsets.astype(np.float32)
     translations[:, 0] = motion.root_translation[start:stop]
-    rotations = wxyz_to_xyzw(motion.rotations[start:stop]).astype(np.float32)
+    wxyz = motion.rotations[start:stop]
+    rotations = np.empty(wxyz.shape, np.float32)  # wxyz → xyzw and float32 in one pass (same values)
+    rotations[..., :3] = wxyz[..., 1:]
+    rotations[..., 3] = wxyz[..., 0]
     return translations, rotations
 
 
