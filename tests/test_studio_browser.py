@@ -280,4 +280,8 @@ def test_stroboscope_exports_a_png(studio, page):
     assert href.startswith("data:image/png;base64,")
     image = Image.open(io.BytesIO(base64.b64decode(href.split(",", 1)[1])))
     assert image.size == tuple(page.evaluate("[window.studio.player.canvas.width, window.studio.player.canvas.height]"))
+    rgb = np.asarray(image.convert("RGB")).astype(int)
+    body = (np.abs(rgb - [0xc8, 0xb8, 0xa8]).max(axis=2) < 40).sum()
+    stick = ((rgb[..., 2] - rgb[..., 0] > 60) & (rgb[..., 2] > 120)).sum()  # the figure's blue
+    assert body > 6 * 500 and stick < 20, (body, stick)  # six bodies, no stick figures (stick=0 in the view)
     page.screenshot(path=SHOTS / "stroboscope.png")

@@ -120,6 +120,7 @@ export class Figure {
   snapshot(f, opacity) {
     const copy = new Figure(this.take, {color: this.color, opacity});
     copy.setFrame(f);
+    copy.stickGroup.visible = this.stickGroup.visible;  // as the player shows it (the body's clone keeps its own)
     const g = new THREE.Group();
     g.add(copy.stickGroup);
     if (this.body && this.clips && this.clips.length) {
