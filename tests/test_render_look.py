@@ -16,7 +16,8 @@ WALK = "cmu/cgspeed_12_01_walk.bvh"
 
 def test_contact_shadow_darkens_the_floor_under_the_body_only(shared_file, tmp_path):
     walk = read_motion(shared_file(WALK), units="asf")
-    options = RenderOptions(width=320, height=240, start=150, end=151, overlay=False, body_resolution=40, grid=False)
+    options = RenderOptions(width=320, height=240, start=150, end=151, overlay=False, body_resolution=40, grid=False,
+                            fxaa=False)  # the shadow alone (FXAA also re-blends the body's outline over it)
     images = {}
     for on in (True, False):
         render_motion(walk, tmp_path / f"{on}/####.png", dataclasses.replace(options, contact_shadow=on))
@@ -34,3 +35,70 @@ def test_contact_shadow_darkens_the_floor_under_the_body_only(shared_file, tmp_p
     x, y = project(floor(0.0, 0.8 * size), plan.camera.poses[0], plan.camera.yfov, 320, 240).astype(int)
     assert abs(darker[y, x]) <= 3  # far from the body: untouched
     assert (darker >= -3).all()  # the shadow only darkens
+
+
+def _grey(image: np.ndarray) -> np.ndarray:
+    return image.astype(float) @ [0.299, 0.587, 0.114]
+
+
+def test_grid_lines_are_anti_aliased_and_unbroken_near_and_far(shared_file, tmp_path):
+    """Across every grid line parallel to the picture, near the body and far behind it, each
+    sampled column shows the line (darker than the floor around it) with intermediate greys at
+    its edges: not a hard 1-pixel step, and no gaps where a thin far line used to vanish."""
+    walk = read_motion(shared_file(WALK), units="asf")
+    options = RenderOptions(width=640, height=360, start=150, end=151, overlay=False, body_resolution=40,
+                            contact_shadow=False, style="stick", fxaa=False)  # the grid texture alone
+    render_motion(walk, tmp_path / "####.png", options)
+    grey = _grey(read_image(tmp_path / "0000.png"))
+    plan = plan_render(walk, options)
+    pose, root = plan.camera.poses[0], joints_render_space(walk, plan.frames)[0][0]
+    view = -pose[:3, 2]  # the camera looks along -z of its pose
+    # grid lines of constant z (world) run across a side view when it looks along z; else use x
+    axis, along = (2, 0) if abs(view[2]) > abs(view[0]) else (0, 2)
+    columns = []
+    # the grid reaches 2 m past the joints' extent: its lines from 1.9 m before to 1.9 m behind the body
+    for k in np.arange(np.ceil(root[axis] - 1.9), np.floor(root[axis] + 1.9) + 1):
+        points = np.zeros((40, 3))
+        points[:, axis], points[:, 1] = k, plan.ground
+        points[:, along] = root[along] + np.linspace(-1.9, 1.9, 40)
+        if np.sign(np.dot(points[0] - pose[:3, 3], view)) <= 0:
+            continue  # behind the camera
+        pixels = project(points, pose, plan.camera.yfov, 640, 360)
+        for (x, y), p in zip(pixels, points):
+            x, y = int(round(x)), int(round(y))
+            if 10 <= x < 630 and 10 <= y < 350 and abs(p[along] - root[along]) > 0.6:  # not the stick figure
+                columns.append((k, x, y, grey[y - 6:y + 7, x]))
+    assert len(columns) > 40, len(columns)
+    full = min(column.min() for *_, column in columns)  # a pixel wholly covered by a near line
+    for k, x, y, column in columns:
+        floor = column.max()
+        assert floor - column.min() > 5, (k, x, y, column.round())  # the line is there (the floor is flat)
+        # a hard-edged line has floor and full-line greys only; an anti-aliased one has greys between
+        assert ((column > full + 3) & (column < floor - 3)).any(), (k, x, y, full, column.round())
+
+
+def test_fxaa_blends_edges_and_leaves_the_rest(shared_file, tmp_path):
+    """The FXAA pass changes pixels only on strong edges of the picture (the body's outline),
+    and it changes many of them, towards the colours on either side."""
+    walk = read_motion(shared_file(WALK), units="asf")
+    options = RenderOptions(width=320, height=240, start=150, end=151, overlay=False, body_resolution=40,
+                            grid=False, contact_shadow=False)
+    images = {}
+    for on in (True, False):
+        render_motion(walk, tmp_path / f"{on}/####.png", dataclasses.replace(options, fxaa=on))
+        images[on] = read_image(tmp_path / f"{on}/0000.png").astype(int)
+    grey = _grey(images[False])
+    edge = np.zeros(grey.shape, bool)
+    for dy, dx in ((0, 1), (1, 0)):
+        step = np.abs(grey[dy:, dx:] - grey[:grey.shape[0] - dy, :grey.shape[1] - dx]) > 8
+        edge[dy:, dx:] |= step
+        edge[:grey.shape[0] - dy, :grey.shape[1] - dx] |= step
+    near_edge = edge | np.roll(edge, 1, 0) | np.roll(edge, -1, 0) | np.roll(edge, 1, 1) | np.roll(edge, -1, 1)
+    changed = np.abs(images[True] - images[False]).max(axis=-1) > 2
+    assert changed.sum() > 150, changed.sum()
+    assert not (changed & ~near_edge).any(), np.argwhere(changed & ~near_edge)[:5]
+    # a changed pixel lies between its neighbours' extremes (a blend, not a new colour)
+    lo = np.minimum.reduce([np.roll(grey, s, a) for s in (-1, 0, 1) for a in (0, 1)])
+    hi = np.maximum.reduce([np.roll(grey, s, a) for s in (-1, 0, 1) for a in (0, 1)])
+    after = _grey(images[True])[changed]
+    assert ((after >= lo[changed] - 2) & (after <= hi[changed] + 2)).mean() > 0.97

@@ -132,7 +132,7 @@ def _draw(motion: Motion, frames: np.ndarray, plan, options) -> np.ndarray:
     travel[1] = 0.0
     forward = travel / np.linalg.norm(travel) if np.linalg.norm(travel) > 1e-6 else np.array([0.0, 0.0, 1.0])
     add_lights(scene, forward)
-    renderer = offscreen_renderer(options.width, options.height, msaa=options.msaa)
+    renderer = offscreen_renderer(options.width, options.height, msaa=options.msaa, fxaa=options.fxaa)
     try:
         image = render_rgb(renderer, scene, options.shadows)
     finally:

@@ -119,7 +119,7 @@ class Views:
         self.shadow = self._contact_shadow() if options.contact_shadow else None
         self.strip = self._plot_strip(motion) if options.panel else None
         self.view_nodes = self._view_cameras(pyrender) if plan.cameras else []
-        self.renderer = offscreen_renderer(*plan.panel, msaa=options.msaa)
+        self.renderer = offscreen_renderer(*plan.panel, msaa=options.msaa, fxaa=options.fxaa)
 
     def _contact_shadow(self):
         """The :class:`~usdmotion.render.shadow.ContactShadow` under the main body (None: no body)."""
