@@ -81,20 +81,9 @@ def offscreen_renderer(width: int, height: int, msaa: int = 0, fxaa: bool = True
         return np.frombuffer(data, np.uint8).reshape(h, w, 3)[::-1], None
 
     inner._read_main_framebuffer = read_color
-    sorted_nodes = inner._sorted_mesh_nodes
-
-    def floor_first(scene):  # pyrender draws translucent meshes far to near by their node's origin;
-        # ours all sit at the origin and tie in set order: the floor grid first, so what lies on it
-        # (the contact shadow, a ghost's feet) blends over it instead of hiding it
-        nodes = sorted_nodes(scene)
-        return sorted(nodes, key=lambda n: 0 if not n.mesh.is_transparent else 1 if n.mesh.name != FLOOR else 0)
-
-    inner._sorted_mesh_nodes = floor_first
     return renderer
 
 
-#: Name of the floor grid's mesh (drawn first of the translucent meshes).
-FLOOR = "usdmotion floor grid"
 
 
 _FXAA_VERTEX = """#version 330 core

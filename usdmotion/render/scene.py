@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from usdmotion.render.gl import FLOOR, DynamicMesh, import_pyrender
+from usdmotion.render.gl import DynamicMesh, import_pyrender
 from usdmotion.render.space import to_render_space  # noqa: F401  (re-exported: scene content is in render space)
 
 #: Colours (linear RGBA) of the scene's parts.
@@ -106,57 +106,18 @@ class StickFigure:
 # ------------------------------------------------------------------ static parts
 
 
-#: Texels per grid cell of the grid texture (the lines' edges are anti-aliased in it).
-GRID_TEXELS = 256
-
-
-def grid_texture(line_fraction: float, texels: int = GRID_TEXELS) -> np.ndarray:
-    """One grid cell as an RGBA texture ``(T, T, 4)`` uint8: white, opaque on lines of
-    ``line_fraction`` of the cell centred on its edges, transparent between; each texel's alpha
-    is the fraction of it the line covers (anti-aliased edges)."""
-    width = min(max(float(line_fraction), 1.0 / texels), 0.5)
-    edges = np.arange(texels + 1) / texels
-    lo, hi = edges[:-1], edges[1:]
-    # the line is [-w/2, w/2] around 0 (and 1): overlap with each texel, in texels
-    coverage = (np.clip(np.minimum(hi, width / 2) - lo, 0, None)
-                + np.clip(hi - np.maximum(lo, 1 - width / 2), 0, None)) * texels
-    coverage = np.clip(coverage, 0.0, 1.0)
-    alpha = np.maximum(coverage[:, None], coverage[None, :])
-    rgba = np.full((texels, texels, 4), 255, np.uint8)
-    rgba[..., 3] = np.rint(255 * alpha).astype(np.uint8)
-    return rgba
-
-
-def _anisotropic_texture(pyrender, source: np.ndarray):
-    """A mip-mapped, repeating pyrender texture sampled anisotropically (16×, or the driver's
-    most): grid lines seen at a grazing angle stay lines instead of vanishing or shimmering."""
-    from OpenGL import GL
-    from OpenGL.error import GLError
-
-    max_anisotropy, most_anisotropy = 0x84FE, 0x84FF  # GL 4.6 / EXT_texture_filter_anisotropic
-
-    class AnisotropicTexture(pyrender.Texture):
-        def _add_to_context(self):
-            super()._add_to_context()
-            GL.glBindTexture(GL.GL_TEXTURE_2D, self._texid)
-            try:
-                most = float(GL.glGetFloatv(most_anisotropy))
-                GL.glTexParameterf(GL.GL_TEXTURE_2D, max_anisotropy, min(16.0, most))
-            except GLError:  # a driver without anisotropic filtering: mip-mapped only
-                pass
-            GL.glBindTexture(GL.GL_TEXTURE_2D, 0)
-
-    sampler = pyrender.Sampler(magFilter=GL.GL_LINEAR, minFilter=GL.GL_LINEAR_MIPMAP_LINEAR,
-                               wrapS=GL.GL_REPEAT, wrapT=GL.GL_REPEAT)
-    return AnisotropicTexture(source=source, source_channels="RGBA", sampler=sampler)
+#: Pieces each grid line is cut into, so its width can follow the distance to the camera.
+GRID_PIECES = 24
 
 
 def grid_mesh(lo: np.ndarray, hi: np.ndarray, height: float, spacing: float, line_width: float,
-              solid: bool = False):
+              solid: bool = False, eye: np.ndarray | None = None, pixel_angle: float = 0.0):
     """Grid lines every ``spacing`` metres over ``[lo, hi]`` (x, z), on a floor quad if ``solid``.
 
-    The lines are a texture on one quad (:func:`grid_texture`, mip-mapped and sampled
-    anisotropically): anti-aliased at every distance and angle at the cost of one textured quad.
+    Lines are ``line_width`` metres wide, or, seen from ``eye`` (metres, render space) with
+    ``pixel_angle`` radians a pixel, wide enough to cover 1.4 pixels where they lie: wider far
+    away and where the floor is seen at a grazing angle (up to 5×), so a far line across the
+    view is not dropped by the rasteriser (the FXAA pass then smooths its edges).
     """
     pyrender = import_pyrender()
     import trimesh
@@ -164,15 +125,31 @@ def grid_mesh(lo: np.ndarray, hi: np.ndarray, height: float, spacing: float, lin
     x0, x1 = np.floor(lo[0] / spacing) * spacing, np.ceil(hi[0] / spacing) * spacing
     z0, z1 = np.floor(lo[2] / spacing) * spacing, np.ceil(hi[2] / spacing) * spacing
     quad = np.array([[x0, height, z0], [x1, height, z0], [x1, height, z1], [x0, height, z1]])
-    faces = np.array([[0, 2, 1], [0, 3, 2]])
-    ground = trimesh.Trimesh(quad, faces, process=False)
-    lifted = quad + [0.0, 1e-3 * max(spacing, 1.0), 0.0]
-    grid = material(COLORS["grid"][:3] + (0.999,))  # BLEND: the texture's alpha is the lines
-    grid.baseColorTexture = _anisotropic_texture(pyrender, grid_texture(line_width / spacing))
-    lines = pyrender.Primitive(positions=lifted.astype(np.float32), normals=np.tile([[0.0, 1.0, 0.0]], (4, 1)),
-                               texcoord_0=(lifted[:, [0, 2]] / spacing).astype(np.float32),
-                               indices=faces.astype(np.uint32), material=grid)
-    meshes = [pyrender.Mesh([lines], name=FLOOR)]
+    ground = trimesh.Trimesh(quad, [[0, 2, 1], [0, 3, 2]], process=False)
+    h = height + 1e-3 * max(spacing, 1.0)
+    t = np.linspace(0.0, 1.0, GRID_PIECES + 1)
+    xs = np.arange(x0, x1 + spacing / 2, spacing)
+    zs = np.arange(z0, z1 + spacing / 2, spacing)
+    # centre lines (L, P+1, 3) and the floor direction across each line (L, 3)
+    along_z = np.stack(np.broadcast_arrays(xs[:, None], h, z0 + (z1 - z0) * t[None]), axis=-1)
+    along_x = np.stack(np.broadcast_arrays(x0 + (x1 - x0) * t[None], h, zs[:, None]), axis=-1)
+    centres = np.concatenate([along_z, along_x]).astype(np.float64)
+    across = np.concatenate([np.tile([1.0, 0.0, 0.0], (len(xs), 1)), np.tile([0.0, 0.0, 1.0], (len(zs), 1))])
+    width = np.full(centres.shape[:2], float(line_width))
+    if eye is not None and pixel_angle > 0:
+        ray = centres - np.asarray(eye, dtype=np.float64)
+        distance = np.linalg.norm(ray, axis=-1)
+        cosine = np.einsum("lpk,lk->lp", ray, across) / np.maximum(distance, 1e-9)
+        foreshortening = np.maximum(np.sqrt(np.clip(1.0 - cosine ** 2, 0.0, 1.0)), 0.2)
+        width = np.maximum(width, 1.4 * pixel_angle * distance / foreshortening)
+    offset = 0.5 * width[..., None] * across[:, None, :]
+    left, right = centres - offset, centres + offset  # (L, P+1, 3)
+    corners = np.stack([left[:, :-1], right[:, :-1], right[:, 1:], left[:, 1:]], axis=2)  # (L, P, 4, 3)
+    rects = corners.reshape(-1, 4, 3)
+    faces = (np.array([[0, 2, 1], [0, 3, 2]])[None] + 4 * np.arange(len(rects))[:, None, None]).reshape(-1, 3)
+    faces = np.where(np.repeat(across[:, 0] > 0, GRID_PIECES * 2)[:, None], faces, faces[:, [0, 2, 1]])
+    lines = trimesh.Trimesh(rects.reshape(-1, 3), faces, process=False)
+    meshes = [pyrender.Mesh.from_trimesh(lines, material=material(COLORS["grid"]), smooth=False)]
     if solid:  # a shaded floor costs a lighting pass for half the image on a CPU rasteriser
         meshes.insert(0, pyrender.Mesh.from_trimesh(ground, material=material(COLORS["ground"]), smooth=False))
     return meshes
