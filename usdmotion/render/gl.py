@@ -97,18 +97,21 @@ void main() {  // one triangle over the whole picture
 
 #: FXAA (T. Lottes, NVIDIA 2009/2011), the "fast" variant: luma of the 4 diagonal neighbours
 #: gives the edge direction; 2 + 2 samples along it are blended; pixels off edges are kept.
+#: The five taps are plain texel reads (no filtering: cheap on a CPU rasteriser); only edge
+#: pixels take the four filtered samples.
 _FXAA_FRAGMENT = """#version 330 core
 uniform sampler2D image;
 in vec2 uv;
 out vec4 color;
 float luma(vec3 c) { return dot(c, vec3(0.299, 0.587, 0.114)); }
 void main() {
-    vec3 m = texture(image, uv).rgb;
+    ivec2 p = ivec2(gl_FragCoord.xy);
+    vec3 m = texelFetch(image, p, 0).rgb;
     float lm = luma(m);
-    float nw = luma(textureOffset(image, uv, ivec2(-1, 1)).rgb);
-    float ne = luma(textureOffset(image, uv, ivec2(1, 1)).rgb);
-    float sw = luma(textureOffset(image, uv, ivec2(-1, -1)).rgb);
-    float se = luma(textureOffset(image, uv, ivec2(1, -1)).rgb);
+    float nw = luma(texelFetch(image, p + ivec2(-1, 1), 0).rgb);
+    float ne = luma(texelFetch(image, p + ivec2(1, 1), 0).rgb);
+    float sw = luma(texelFetch(image, p + ivec2(-1, -1), 0).rgb);
+    float se = luma(texelFetch(image, p + ivec2(1, -1), 0).rgb);
     float lo = min(lm, min(min(nw, ne), min(sw, se)));
     float hi = max(lm, max(max(nw, ne), max(sw, se)));
     if (hi - lo < max(1.0 / 32.0, hi / 8.0)) { color = vec4(m, 1.0); return; }
