@@ -372,3 +372,21 @@ def test_retarget_batch_matches_the_single_file_command(tmp_path, monkeypatch, s
         assert batch_report == own
         assert own["frames"] == 40 and own["target_joints"] == 4
         assert read_motion(out / f"{name}.usda").n_frames == 40
+
+
+def test_a_redone_task_removes_only_its_takes_temporaries(tmp_path):
+    """What a killed worker leaves beside an output, atomic_output's temporary and the one
+    usd-core writes beside that before renaming it, is removed when the take is redone;
+    another take's temporaries and other files are kept."""
+    from usdmotion.batch.plan import Job
+    from usdmotion.batch.tasks import _remove_stale_temporaries
+
+    stale = [".walk_part0.39rojb7m.tmp.usda", ".walk_part0.39rojb7m.tmp.jIIXun"]
+    kept = [".walk.v2.39rojb7m.tmp.usda", ".walk_part0.39rojb7m.tmp.usdc", ".walk_part0.39rojb7m.tmp.usda.keep",
+            "walk_part0.usda"]
+    for name in stale + kept:
+        (tmp_path / name).write_text("partial")
+    jobs = tuple(Job("convert", stem, f"/src/{stem}.bvh", f"{stem}.bvh", {"motion": str(tmp_path / f"{stem}.usda")},
+                     {}, {}) for stem in ("walk_part0", "walk"))
+    _remove_stale_temporaries(jobs)
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(kept)

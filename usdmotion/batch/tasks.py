@@ -65,18 +65,23 @@ def _make_folders(job: Job) -> list[Path]:
 
 
 def _remove_stale_temporaries(jobs: tuple[Job, ...]) -> None:
-    """Remove the temporary files ``atomic_output`` names ``.STEM.*.tmpSUFFIX`` beside the jobs'
-    outputs (one folder listing per output folder, not one glob per output)."""
-    wanted: dict[str, set[tuple[str, str]]] = {}
+    """Remove the temporary files a killed worker left beside the jobs' outputs: those of
+    ``atomic_output`` (``.STEM.XXXXXXXX.tmpSUFFIX``, Python's ``mkstemp``) and usd-core's own,
+    which it writes beside that before renaming it (``.STEM.XXXXXXXX.tmp.XXXXXX``). One
+    folder listing per output folder."""
+    import re
+
+    wanted: dict[str, list[re.Pattern]] = {}
     for out in (Path(p) for job in jobs for p in job.outputs.values()):
-        wanted.setdefault(str(out.parent), set()).add((f".{out.stem}.", f".tmp{out.suffix}"))
-    for folder, names in wanted.items():
+        wanted.setdefault(str(out.parent), []).append(
+            re.compile(rf"\.{re.escape(out.stem)}\.[a-z0-9_]{{8}}\.tmp(?:{re.escape(out.suffix)}|\.[A-Za-z0-9]{{6}})"))
+    for folder, patterns in wanted.items():
         try:
-            entries = [e.name for e in os.scandir(folder) if e.name.startswith(".") and ".tmp" in e.name]
+            names = [e.name for e in os.scandir(folder) if e.name.startswith(".") and ".tmp" in e.name]
         except OSError:  # not made yet: nothing to remove
             continue
-        for name in entries:
-            if any(name.startswith(head) and name.endswith(tail) for head, tail in names):
+        for name in names:
+            if any(pattern.fullmatch(name) for pattern in patterns):
                 Path(folder, name).unlink(missing_ok=True)
 
 
