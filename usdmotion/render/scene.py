@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from usdmotion.render.camera import UP, look_at
 from usdmotion.render.gl import DynamicMesh, import_pyrender
 from usdmotion.render.space import to_render_space  # noqa: F401  (re-exported: scene content is in render space)
 
@@ -188,7 +189,6 @@ def tube_mesh(path: np.ndarray, radius: float, color, max_points: int = 4000):
 def add_lights(scene, forward: np.ndarray, intensity: float = 3.0):
     """A key light from above the subject's front left (it casts the shadows)."""
     pyrender = import_pyrender()
-    from usdmotion.render.camera import UP, look_at
 
     left = np.cross(UP, forward)
     # one light: every light is a full lighting pass per pixel on a CPU rasteriser

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from usdmotion.errors import OutputError, UsdMotionError
+from usdmotion.io.atomic import atomic_output
 from usdmotion.motion import Motion
 
 STILL_EXTENSIONS = (".png", ".jpg", ".jpeg")
@@ -67,7 +68,6 @@ def render_strobe(motion: Motion, output: str | Path, options, count: int | None
     """Render the stroboscope still of ``motion`` to ``output``; returns its source frames ``(N,)``."""
     import dataclasses
 
-    from usdmotion.io.atomic import atomic_output
     from usdmotion.render import output_frames, plan_render
 
     output = Path(output)
