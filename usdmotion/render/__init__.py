@@ -53,6 +53,7 @@ class RenderOptions:
     compare_mode: str = "ghost"
     shadows: bool = False
     msaa: int = 0
+    fxaa: bool = True  # anti-aliasing post pass where there is no multisampling (msaa 0)
     quality: int = 20
     body_resolution: int = 96
     body: str = "auto"  # "stage": the input's own skinned meshes, "generated": usdmotion.skin.build_body, "auto": stage if any

@@ -126,13 +126,14 @@ def _draw(motion: Motion, frames: np.ndarray, plan, options) -> np.ndarray:
         margin = max(2.0, 2 * options.grid_scale)
         lo, hi = joints.reshape(-1, 3).min(axis=0) - margin, joints.reshape(-1, 3).max(axis=0) + margin
         distance = float(np.linalg.norm(camera.poses[-1][:3, 3] - joints[:, 0].mean(axis=0)))
-        for mesh in grid_mesh(lo, hi, plan.ground, options.grid_scale, max(0.0025 * distance, 0.004)):
+        for mesh in grid_mesh(lo, hi, plan.ground, options.grid_scale, max(0.0025 * distance, 0.004),
+                              eye=camera.poses[-1][:3, 3], pixel_angle=2 * np.tan(camera.yfov / 2) / options.height):
             scene.add(mesh)
     travel = joints[-1, 0] - joints[0, 0]
     travel[1] = 0.0
     forward = travel / np.linalg.norm(travel) if np.linalg.norm(travel) > 1e-6 else np.array([0.0, 0.0, 1.0])
     add_lights(scene, forward)
-    renderer = offscreen_renderer(options.width, options.height, msaa=options.msaa)
+    renderer = offscreen_renderer(options.width, options.height, msaa=options.msaa, fxaa=options.fxaa)
     try:
         image = render_rgb(renderer, scene, options.shadows)
     finally:
