@@ -189,7 +189,15 @@ class _DaskProcesses:
     def __init__(self, folder: Path, n_workers: int, scheduler_env: dict | None = None):
         dask = str(Path(sys.executable).parent / "dask")
         self.file = folder / "scheduler.json"
-        self.procs = [subprocess.Popen([dask, "scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
+        self.procs: list[subprocess.Popen] = []
+        try:
+            self._start(dask, n_workers, scheduler_env)
+        except BaseException:  # nothing left running when the cluster does not come up
+            self.close()
+            raise
+
+    def _start(self, dask: str, n_workers: int, scheduler_env: dict | None) -> None:
+        self.procs += [subprocess.Popen([dask, "scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
                                         "--scheduler-file", str(self.file)], stderr=subprocess.DEVNULL,
                                        env={**os.environ, **(scheduler_env or {})})]
         deadline = time.time() + 60
