@@ -260,6 +260,55 @@ def test_4_usd_error_message_prefers_the_parse_record():
     assert usd_error_message("Error in 'f' at line 1 in file x.cpp : 'boom'") == (None, "boom")
 
 
+def test_4_a_corrupted_usdc_does_not_print_usds_own_posix_madvise_line(capfd, tmp_path):
+    """usd-core's crate reader writes ``failed call to posix_madvise(…)`` straight to fd 2
+    (C++, past the Tf diagnostic trap) for this fuzzed file; only our one line is seen."""
+    path = FUZZ / "convert_usdc_003.usdc"
+    for args in (("info", path), ("convert", path, tmp_path / "out.bvh")):
+        code, _, err = cli(capfd, *args)
+        assert_one_line_error(code, err, path, "cannot open as USD")
+        assert "madvise" not in err
+    assert not list(tmp_path.iterdir())
+
+
+def test_4_native_stderr_during_a_usd_read_becomes_one_warning_python_lines_pass(tmp_path):
+    """What native code prints on fd 2 while a stage is read becomes ``usdmotion: warning:
+    FILE: USD: …``; Python's own stderr lines written meanwhile are not held back; fd 2 is
+    restored afterwards (checked in a subprocess, where sys.stderr is fd 2)."""
+    path = tmp_path / "walk.usda"
+    write_motion(read_motion(WALK, units="asf").sliced(0, 3), path)
+    script = f"""
+import os, sys, warnings
+from usdmotion.cli import _show_warning
+from usdmotion.io import read_motion
+from usdmotion.usd_diagnostics import usd_diagnostics
+warnings.showwarning = _show_warning
+with usd_diagnostics({str(path)!r}):
+    os.write(2, b"native: something C++ said\\n")
+    print("python line", file=sys.stderr, flush=True)
+    read_motion({str(path)!r})
+os.write(2, b"after the block\\n")
+"""
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert result.stderr.splitlines() == ["python line", f"usdmotion: warning: {path}: USD: native: something C++ said",
+                                          "after the block"]
+
+
+def test_4_native_stderr_is_dropped_when_the_read_fails_and_nests(capfd):
+    from usdmotion.errors import UsdReadError
+    from usdmotion.usd_diagnostics import native_stderr, usd_diagnostics
+
+    with pytest.raises(UsdReadError), usd_diagnostics("x.usdc"):
+        with native_stderr() as inner:
+            os.write(2, b"inner\n")
+        assert inner == ["inner"]
+        os.write(2, b"outer\n")
+        raise UsdReadError("x.usdc", "refused")
+    os.write(2, b"restored\n")
+    assert capfd.readouterr().err == "restored\n"
+
+
 # -------------------------------------------------------- 6. options and documents
 
 
@@ -401,7 +450,7 @@ def _reproducers() -> list[dict]:
     return json.loads(manifest.read_text()) if manifest.is_file() else []
 
 
-@pytest.mark.parametrize("case", _reproducers(), ids=lambda c: c["file"])
+@pytest.mark.parametrize("case", _reproducers(), ids=lambda c: f"{c['entry_point']}-{c['file']}")
 def test_fuzz_reproducers_stay_fixed(case, tmp_path):
     """Each defect the campaign found: the same command now ends ``ok`` or ``clean``
     (classified exactly as the campaign does)."""

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import warnings
 
 import typer
 
@@ -25,8 +26,11 @@ def info(
     if source.suffix.lower() in (".usd", ".usda", ".usdc", ".usdz"):
         from usdmotion.io.usd import _open_stage
         from usdmotion.io.usd_read import list_skeletons
+        from usdmotion.usd_diagnostics import usd_diagnostics
 
-        summary["skeletons"] = list_skeletons(_open_stage(source))
+        with warnings.catch_warnings(), usd_diagnostics(source):  # what USD says was said by read()
+            warnings.simplefilter("ignore")
+            summary["skeletons"] = list_skeletons(_open_stage(source))
         summary["meshes"] = [{"name": m.name, "points": len(m.points), "blend_shapes": [b.name for b in m.blend_shapes]}
                              for m in motion.meshes]
     if as_json:
