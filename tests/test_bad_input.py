@@ -454,7 +454,7 @@ def _reproducers() -> list[dict]:
 def test_fuzz_reproducers_stay_fixed(case, tmp_path):
     """Each defect the campaign found: the same command now ends ``ok`` or ``clean``
     (classified exactly as the campaign does)."""
-    from fuzz_support import run_case
+    from fuzz_support import amc_seed_text, asf_seed_text, expand, run_case
 
     src = FUZZ / case["file"]
     out_dir = tmp_path / "out"
@@ -462,7 +462,9 @@ def test_fuzz_reproducers_stay_fixed(case, tmp_path):
     walk = tmp_path / "walk120.bvh"  # the campaign's {walk} seed: the first 120 frames of the CMU walk
     if any("{walk}" in a for a in case["args"]):
         write_bvh(read_motion(WALK).sliced(0, 120), walk)
-    args = [a.replace("{walk}", str(walk)).replace("{src}", str(src)).replace("{out}", str(out_dir / "out"))
-            for a in case["args"]]
+    seeds = {"asf": tmp_path / "seed.asf", "amc": tmp_path / "seed.amc"}  # the campaign's ASF/AMC seeds
+    seeds["asf"].write_text(asf_seed_text())
+    seeds["amc"].write_text(amc_seed_text())
+    args = expand(case["args"], src, out_dir / "out", walk, seeds)
     outcome = run_case(args, out_dir)
     assert outcome.kind in ("ok", "clean"), f"{outcome.reason}\n{outcome.stderr}"
