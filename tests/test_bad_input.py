@@ -423,6 +423,47 @@ def test_8_an_end_site_without_offset_is_accepted_as_a_tip_at_its_joint(tmp_path
     assert np.array_equal(np.delete(motion.offsets, tip, 0), np.delete(reference.offsets, tip, 0))
 
 
+# ------------------------------------------------ huge takes: memory of a long convert
+
+
+def test_long_take_memory_extent_is_the_min_max_of_all_joint_positions():
+    """The chunked bounds the USD writer authors as ``extent`` equal the min/max of the full
+    ``(F, J, 3)`` positions (chunks of 7 frames: not a divisor of the take)."""
+    from usdmotion.kinematics import joint_position_bounds, joint_positions
+
+    motion = read_motion(WALK, units="asf").sliced(0, 101)
+    positions = joint_positions(motion).reshape(-1, 3)
+    lo, hi = joint_position_bounds(motion, chunk_frames=7)
+    assert np.array_equal(lo, positions.min(axis=0)) and np.array_equal(hi, positions.max(axis=0))
+
+
+def test_long_take_memory_rows_are_not_copied_and_dropped_when_not_written(tmp_path):
+    """The parsed rows go into the Motion as they are (``source_channels`` shares the parser's
+    array); a USD or glTF output drops them (only a BVH write uses them), a BVH keeps them."""
+    from usdmotion.io.bvh import motion_from_bvh, parse_bvh
+    from usdmotion.io.convert import kept_for
+
+    data = parse_bvh(WALK.read_bytes(), WALK)
+    motion = motion_from_bvh(data)
+    assert motion.source_channels is data.values
+    assert kept_for(motion, tmp_path / "a.usdc").source_channels is None
+    assert kept_for(motion, tmp_path / "a.glb").source_channels is None
+    assert kept_for(motion, tmp_path / "a.bvh") is motion
+
+
+@pytest.mark.parametrize("claim", [3, 1000, 10**8])
+def test_long_take_memory_rows_parse_whatever_frames_claims(claim, tmp_path):
+    """Rows are parsed into an array sized from ``Frames:`` (grown past a short claim, capped by
+    what the bytes can hold for an absurd one): the rows read equal the file's numbers."""
+    from usdmotion.io.bvh_rows import parse_rows
+
+    rng = np.random.default_rng(3)
+    expected = np.round(rng.uniform(-180, 180, (257, 6)), 4)
+    buf = ("\n".join(" ".join(f"{v:.4f}" for v in row) for row in expected) + "\n").encode()
+    rows = parse_rows(memoryview(buf), 6, 10, None, expected_rows=claim)
+    assert rows.values.shape == (257, 6) and np.array_equal(rows.values, expected)
+
+
 # ------------------------------------------------------------------ docs/errors.md
 
 

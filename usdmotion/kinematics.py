@@ -117,6 +117,22 @@ def joint_positions(motion: Motion) -> np.ndarray:
     return world_rotations_positions(motion)[1]
 
 
+def joint_position_bounds(motion: Motion, chunk_frames: int = 4096) -> tuple[np.ndarray, np.ndarray]:
+    """``(lowest (3,), highest (3,))`` world joint position over all frames and joints, file
+    units; the same numbers as ``joint_positions(motion)``'s ``min``/``max``, computed a chunk
+    of frames at a time so the FK temporaries stay bounded (a long take's full ``(F, J, 3)``
+    positions and FK planes would be several times its data)."""
+    if motion.n_frames == 0:
+        points = rest_positions(motion)
+        return points.min(axis=0), points.max(axis=0)
+    lows, highs = [], []
+    for start in range(0, motion.n_frames, chunk_frames):
+        points = joint_positions(motion.sliced(start, start + chunk_frames)).reshape(-1, 3)
+        lows.append(points.min(axis=0))
+        highs.append(points.max(axis=0))
+    return np.min(lows, axis=0), np.max(highs, axis=0)
+
+
 def fk(motion: Motion) -> np.ndarray:
     """World transforms ``T_world_joint`` ``(F, J, 4, 4)`` (column vectors, file units)."""
     world_q, world_p = world_rotations_positions(motion)

@@ -187,7 +187,10 @@ class Motion:
                                      f"(distinct names among {', '.join(CHANNEL_NAMES)})")
             set_(self, "channels", channels)
         if self.source_channels is not None:
-            sc = np.array(self.source_channels, dtype=np.float64)
+            sc = self.source_channels  # shared like the other arrays when read-only and owning its data
+            if not (isinstance(sc, np.ndarray) and sc.dtype == np.float64 and not sc.flags.writeable
+                    and sc.base is None):
+                sc = np.array(sc, dtype=np.float64)
             if sc.ndim != 2 or sc.shape[0] != n_frames:
                 raise ValueError(f"source_channels must have shape ({n_frames}, C), got {sc.shape}; "
                                  "use Motion.with_frames() when the frame count changes")

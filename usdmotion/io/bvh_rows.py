@@ -30,12 +30,18 @@ class Rows:
     first_dropped_line: int | None = None
 
 
-def _arrow_parse(buf: bytes, n_channels: int) -> np.ndarray | None:
-    """``(F, C)`` float64 via pyarrow, or ``None`` if the bytes are not clean rows."""
+def _arrow_parse(buf, n_channels: int, expected_rows: int | None = None) -> np.ndarray | None:
+    """``(F, C)`` float64 via pyarrow, or ``None`` if the bytes are not clean rows.
+
+    ``buf`` (bytes or a memoryview of them, not copied) is read in blocks by pyarrow's
+    streaming CSV reader, each block copied into one preallocated array of
+    ``expected_rows`` rows (the header's ``Frames:``; grown if the file has more), so the
+    peak is the array plus a block, not the whole parsed table beside its copy.
+    """
     import pyarrow as pa
     import pyarrow.csv as pcsv
 
-    if n_channels == 0 or not buf or buf.isspace():
+    if n_channels == 0 or not len(buf) or bytes(buf[:4096]).isspace() and bytes(buf).isspace():
         return None
     read = pcsv.ReadOptions(autogenerate_column_names=True, block_size=1 << 22)
     parse = pcsv.ParseOptions(delimiter=" ", quote_char=False, escape_char=False,
@@ -44,17 +50,26 @@ def _arrow_parse(buf: bytes, n_channels: int) -> np.ndarray | None:
         column_types={f"f{k}": pa.float64() for k in range(n_channels)},
         null_values=[], strings_can_be_null=False, quoted_strings_can_be_null=False,
     )
+    # a row takes at least two bytes per value: a Frames: claim beyond that is not allocated
+    capacity = max(min(int(expected_rows or 0), len(buf) // (2 * n_channels) + 1), 1)
+    out = np.empty((capacity, n_channels), dtype=np.float64)
+    rows = 0
     try:
-        table = pcsv.read_csv(io.BytesIO(buf), read_options=read, parse_options=parse,
-                              convert_options=convert)
+        reader = pcsv.open_csv(pa.BufferReader(pa.py_buffer(buf)), read_options=read, parse_options=parse,
+                               convert_options=convert)
+        if len(reader.schema) != n_channels:
+            return None
+        for batch in reader:
+            n = batch.num_rows
+            if rows + n > capacity:  # more rows than Frames: says (the caller reports it)
+                capacity = max(2 * capacity, rows + n)
+                out = np.resize(out, (capacity, n_channels))
+            for k, column in enumerate(batch.columns):
+                out[rows:rows + n, k] = _float64_values(column)
+            rows += n
     except (pa.ArrowInvalid, pa.ArrowTypeError, pa.ArrowNotImplementedError):
         return None
-    if table.num_columns != n_channels:
-        return None
-    out = np.empty((table.num_rows, n_channels), dtype=np.float64)
-    for k, column in enumerate(table.columns):
-        out[:, k] = np.concatenate([_float64_values(chunk) for chunk in column.chunks]) if column.chunks else []
-    return out
+    return out if rows == capacity else out[:rows].copy()
 
 
 def _float64_values(chunk) -> np.ndarray:
@@ -133,22 +148,22 @@ def _is_float(text: str) -> bool:
     return True
 
 
-def parse_rows(buf: bytes, n_channels: int, first_line: int, path: str | None,
-               lenient: bool = False) -> Rows:
+def parse_rows(buf: bytes | memoryview, n_channels: int, first_line: int, path: str | None,
+               lenient: bool = False, expected_rows: int | None = None) -> Rows:
     """Parse motion rows ``buf`` (bytes after the ``Frame Time`` line).
 
     Args:
-        buf: the motion rows, any line ends, blank lines allowed.
+        buf: the motion rows, any line ends, blank lines allowed (a memoryview is read without copying).
         n_channels: ``C``, values per row declared by the hierarchy.
         first_line: 1-based line number of the first byte of ``buf`` (for errors).
         lenient: drop rows with the wrong number of values (with a warning).
+        expected_rows: the row count the header declares (the array is allocated once for it).
 
     Raises:
         BvhParseError: a row with the wrong number of values or a non-number.
     """
-    if b"\r" in buf and b"\n" not in buf:  # classic-Mac line ends
-        buf = buf.replace(b"\r", b"\n")
     if n_channels == 0:
+        buf = bytes(buf)
         lines = [line for line in buf.split(b"\n") if line.strip()]
         if lines:
             k = next(i for i, line in enumerate(buf.split(b"\n")) if line.strip())
@@ -156,9 +171,12 @@ def parse_rows(buf: bytes, n_channels: int, first_line: int, path: str | None,
                 raise BvhParseError(path, "motion row has values but the hierarchy declares no channels",
                                     first_line + k)
         return Rows(np.zeros((0, 0)))
-    values = _arrow_parse(buf, n_channels)
+    values = _arrow_parse(buf, n_channels, expected_rows)  # the buffer as is (no copy): nearly every file
     if values is None:
-        values = _arrow_parse(normalize_whitespace(buf), n_channels)
+        buf = bytes(buf)
+        if b"\r" in buf and b"\n" not in buf:  # classic-Mac line ends
+            buf = buf.replace(b"\r", b"\n")
+        values = _arrow_parse(normalize_whitespace(buf), n_channels, expected_rows)
     if values is not None:
         return Rows(values)
     rows = _line_scan(buf, n_channels, first_line, path, lenient)

@@ -55,10 +55,9 @@ def finish_stage(stage, skeleton, motion) -> None:
 def _extent(stage, root, motion) -> None:
     from pxr import Gf, UsdGeom, UsdSkel, Vt
 
-    from usdmotion.kinematics import joint_positions
+    from usdmotion.kinematics import joint_position_bounds
 
-    positions = joint_positions(motion).reshape(-1, 3)
-    lo, hi = positions.min(axis=0), positions.max(axis=0)
+    lo, hi = joint_position_bounds(motion)
     reach = 0.0
     for prim in root.GetChildren():
         if prim.IsA(UsdGeom.Mesh):
