@@ -123,6 +123,10 @@ def define_skeleton(stage, motion: Motion, root_path: str):
     binding = UsdSkel.BindingAPI.Apply(skel.GetPrim())
     binding.CreateAnimationSourceRel().SetTargets([anim.GetPath()])
 
+    weights_path = None
+    if motion.blend_shape_weights is not None:
+        anim.CreateBlendShapesAttr(Vt.TokenArray(list(motion.blend_shape_names)))
+        weights_path = anim.CreateBlendShapeWeightsAttr().GetPath()
     layer = stage.GetRootLayer()
     t_path, r_path = translations_attr.GetPath(), rotations_attr.GetPath()
     if motion.n_frames == 0:
@@ -134,6 +138,10 @@ def define_skeleton(stage, motion: Motion, root_path: str):
             for k in range(translations.shape[0]):  # one time sample per frame: the USD API's unit
                 layer.SetTimeSample(t_path, float(start + k), Vt.Vec3fArray.FromNumpy(translations[k]))
                 layer.SetTimeSample(r_path, float(start + k), Vt.QuatfArray.FromNumpy(rotations[k]))
+        if weights_path is not None:
+            weights = motion.blend_shape_weights.astype(np.float32)
+            for k in range(motion.n_frames):
+                layer.SetTimeSample(weights_path, float(k), Vt.FloatArray.FromNumpy(weights[k]))
     return skel
 
 
