@@ -272,28 +272,34 @@ def test_4_a_corrupted_usdc_does_not_print_usds_own_posix_madvise_line(capfd, tm
     assert not list(tmp_path.iterdir())
 
 
-def test_4_native_stderr_during_a_usd_read_becomes_one_warning_python_lines_pass(tmp_path):
-    """What native code prints on fd 2 while a stage is read becomes ``usdmotion: warning:
-    FILE: USD: …``; Python's own stderr lines written meanwhile are not held back; fd 2 is
-    restored afterwards (checked in a subprocess, where sys.stderr is fd 2)."""
+def test_4_what_is_printed_past_usdmotion_during_a_usd_read_becomes_its_warnings(tmp_path):
+    """Lines written to fd 2 while a stage is read, by native code or by the Python bindings
+    printing an error themselves, become ``usdmotion: warning: FILE: USD: …``; usdmotion's own
+    warnings written meanwhile pass unchanged, in order; fd 2 is restored afterwards (checked
+    in a subprocess, where sys.stderr is fd 2 as in the installed command)."""
     path = tmp_path / "walk.usda"
     write_motion(read_motion(WALK, units="asf").sliced(0, 3), path)
     script = f"""
 import os, sys, warnings
 from usdmotion.cli import _show_warning
+from usdmotion.errors import UsdMotionWarning
 from usdmotion.io import read_motion
 from usdmotion.usd_diagnostics import usd_diagnostics
 warnings.showwarning = _show_warning
 with usd_diagnostics({str(path)!r}):
     os.write(2, b"native: something C++ said\\n")
-    print("python line", file=sys.stderr, flush=True)
+    warnings.warn("ours, inside the block", UsdMotionWarning)
+    print("TypeError: No to_python (by-value) converter found", file=sys.stderr)
     read_motion({str(path)!r})
 os.write(2, b"after the block\\n")
 """
     result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
     assert result.returncode == 0, result.stderr
-    assert result.stderr.splitlines() == ["python line", f"usdmotion: warning: {path}: USD: native: something C++ said",
-                                          "after the block"]
+    assert result.stderr.splitlines() == [
+        "usdmotion: warning: ours, inside the block",
+        f"usdmotion: warning: {path}: USD: native: something C++ said",
+        f"usdmotion: warning: {path}: USD: TypeError: No to_python (by-value) converter found",
+        "after the block"]
 
 
 def test_4_native_stderr_is_dropped_when_the_read_fails_and_nests(capfd):

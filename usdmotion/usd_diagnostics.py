@@ -11,11 +11,12 @@ file …/stage.cpp : '…'`` records, and warnings go straight to stderr
   :class:`~usdmotion.errors.UsdReadError` naming the file and, for a text-format parse
   error, its ``.usda`` line.
 * :func:`usd_error_message` does the latter for a ``Tf.ErrorException`` caught elsewhere.
-* :func:`native_stderr` catches what USD's C++ code prints straight to file descriptor 2,
-  bypassing its own diagnostic system (a corrupted ``.usdc`` makes the crate reader print
-  ``failed call to posix_madvise(…)``): :func:`usd_diagnostics` redirects fd 2 to a
-  temporary file for the block and turns what was captured into its one warning, or drops
-  it when the block raised (the error already says what is wrong).
+* :func:`native_stderr` catches what is printed straight to file descriptor 2, past USD's
+  diagnostic system and the CLI (a corrupted ``.usdc`` makes the crate reader print
+  ``failed call to posix_madvise(…)``, the Python bindings ``TypeError: No to_python …``):
+  :func:`usd_diagnostics` redirects fd 2 to a temporary file for the block and turns what
+  was captured into its warning, or drops it when the block raised (the error says what
+  is wrong); usdmotion's own lines written meanwhile are passed on.
 """
 
 from __future__ import annotations
@@ -78,85 +79,86 @@ def _warning_text(diagnostic) -> str:
 
 class _Redirect:
     """fd 2 redirected to a temporary file, shared by every block open at once (threads,
-    nesting): the first block in redirects, the last one out restores; each block takes
-    what arrived while it ran. Python's own ``sys.stderr`` keeps writing to the real
-    stderr meanwhile (warnings, the CLI's lines), so only native writes are captured."""
+    nesting): the first block in redirects, the last one out restores. Each block, as it
+    ends, takes what arrived since the last block took its share; usdmotion's own lines
+    and terminal drawing (a progress bar) among it go on to the real stderr at once, the
+    rest (what usd-core's C++ or the Python bindings printed) is the block's to report."""
 
     lock = threading.Lock()
     depth = 0
-    file = None          # the temporary file behind fd 2
-    saved_fd = -1        # the real stderr
-    saved_stream = None  # sys.stderr before the block, when it wrote to fd 2
+    file = None      # the temporary file behind fd 2
+    saved_fd = -1    # the real stderr
+    taken = 0        # bytes of the file already handed out
 
     @classmethod
-    def enter(cls) -> int:
+    def enter(cls) -> None:
         with cls.lock:
+            _flush_python_stderr()
             if cls.depth == 0:
-                cls._redirect()
+                cls.file = tempfile.TemporaryFile()
+                cls.saved_fd, cls.taken = os.dup(2), 0
+                os.dup2(cls.file.fileno(), 2)
             cls.depth += 1
-            return cls.file.seek(0, os.SEEK_END)
 
     @classmethod
-    def leave(cls, start: int) -> str:
+    def leave(cls) -> list[str]:
+        """The foreign lines captured since the last call; ours are passed on."""
         with cls.lock:
-            cls.file.seek(start)
-            text = cls.file.read().decode("utf-8", "replace")
+            _flush_python_stderr()
+            os.lseek(cls.file.fileno(), cls.taken, os.SEEK_SET)
+            raw = b""
+            while chunk := os.read(cls.file.fileno(), 1 << 16):
+                raw += chunk
+            cls.taken += len(raw)
+            ours, foreign = _sorted_lines(raw)
+            if ours:
+                os.write(cls.saved_fd, ours)
             cls.depth -= 1
             if cls.depth == 0:
-                cls._restore()
-            return text
+                os.dup2(cls.saved_fd, 2)
+                os.close(cls.saved_fd)
+                cls.file.close()
+                cls.file, cls.saved_fd = None, -1
+            return foreign
 
-    @classmethod
-    def _redirect(cls) -> None:
-        stream = sys.stderr
+
+def _flush_python_stderr() -> None:
+    for stream in {id(s): s for s in (sys.stderr, sys.__stderr__) if s is not None}.values():
         with contextlib.suppress(Exception):
             stream.flush()
-        cls.file = tempfile.TemporaryFile()
-        cls.saved_fd = os.dup(2)
-        os.dup2(cls.file.fileno(), 2)
-        cls.saved_stream = None
-        if _writes_to_fd2(stream):  # keep Python's writes on the real stderr
-            cls.saved_stream = stream
-            sys.stderr = open(cls.saved_fd, "w", buffering=1, closefd=False,  # noqa: SIM115
-                              encoding=getattr(stream, "encoding", None) or "utf-8", errors="backslashreplace")
-
-    @classmethod
-    def _restore(cls) -> None:
-        if cls.saved_stream is not None:
-            with contextlib.suppress(Exception):
-                sys.stderr.flush()
-            sys.stderr = cls.saved_stream
-            cls.saved_stream = None
-        os.dup2(cls.saved_fd, 2)
-        os.close(cls.saved_fd)
-        cls.file.close()
-        cls.file, cls.saved_fd = None, -1
 
 
-def _writes_to_fd2(stream) -> bool:
-    try:
-        return stream.fileno() == 2
-    except Exception:  # noqa: BLE001 - pytest's capsys, StringIO: not fd 2
-        return False
+def _sorted_lines(raw: bytes) -> tuple[bytes, list[str]]:
+    """``(ours, foreign)``: usdmotion's own lines and terminal drawing as raw bytes, the other
+    non-blank lines as text without control characters."""
+    ours, foreign = [], []
+    for line in raw.splitlines(keepends=True):
+        text = line.decode("utf-8", "replace")
+        if text.startswith("usdmotion: ") or "\x1b" in text or text.rstrip("\n").count("\r"):
+            ours.append(line)
+        elif cleaned := _CONTROL.sub("", text).strip():
+            foreign.append(cleaned)
+    return b"".join(ours), foreign
 
 
 @contextlib.contextmanager
 def native_stderr() -> Iterator[list[str]]:
-    """Capture what native code writes to file descriptor 2 during the block.
+    """Capture what is written to file descriptor 2 during the block, by native code
+    (usd-core's C++ writes there directly) or Python printing past the CLI (the bindings'
+    ``TypeError: No to_python … converter`` lines).
 
-    Yields a list that holds, after the block, the captured lines (terminal control
-    sequences and blank lines removed). Safe to nest and to use from several threads at
-    once (fd 2 is the process's: a native write from another thread meanwhile is captured
-    too, and reported by whichever block is open). ``sys.stderr`` is kept on the real
-    stderr while fd 2 is redirected, so Python's own messages are never held back.
+    Yields a list that holds, after the block, those lines (control characters and blank
+    lines removed). usdmotion's own lines (``usdmotion: warning: …``) and terminal drawing
+    written meanwhile are passed on to the real stderr when the block ends. Safe to nest
+    and to use from several threads at once (fd 2 is the process's: a line another thread
+    writes meanwhile is reported by whichever block ends first).
     """
     lines: list[str] = []
-    start = _Redirect.enter()
+    _Redirect.enter()
     try:
         yield lines
     finally:
-        text = _Redirect.leave(start)
-        lines[:] = [line for line in (_CONTROL.sub("", raw).strip() for raw in text.splitlines()) if line]
+        lines[:] = _Redirect.leave()
 
 
 @contextlib.contextmanager
