@@ -436,11 +436,11 @@ def test_8_an_end_site_without_offset_is_accepted_as_a_tip_at_its_joint(tmp_path
 def test_long_take_memory_extent_is_the_min_max_of_all_joint_positions():
     """The chunked bounds the USD writer authors as ``extent`` equal the min/max of the full
     ``(F, J, 3)`` positions (chunks of 7 frames: not a divisor of the take)."""
-    from usdmotion.kinematics import joint_position_bounds, joint_positions
+    from usdmotion.kinematics import joint_positions, position_bounds
 
     motion = read_motion(WALK, units="asf").sliced(0, 101)
     positions = joint_positions(motion).reshape(-1, 3)
-    lo, hi = joint_position_bounds(motion, chunk_frames=7)
+    lo, hi = position_bounds(motion, chunk_frames=7)
     assert np.array_equal(lo, positions.min(axis=0)) and np.array_equal(hi, positions.max(axis=0))
 
 

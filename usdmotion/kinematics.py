@@ -53,6 +53,29 @@ def _qrot_planes(q, v):
             vz + w * tz + (x * ty - y * tx))
 
 
+def _fk_levels(local_rotations, local_translations, parents: np.ndarray):
+    """World rotation and position planes, one depth level at a time.
+
+    Yields ``(idx, q, p)``: the level's joint indices ``(n,)``, its world wxyz rotations
+    as 4 planes ``(..., n)`` and its world positions as 3 planes ``(..., n)``.
+    """
+    xp = array_namespace(local_rotations, local_translations)
+    levels = depth_levels(parents)
+    q_local = xp.moveaxis(xp.asarray(local_rotations), -1, 0)  # strided views: a copy costs more than it saves
+    t_local = xp.moveaxis(xp.asarray(local_translations), -1, 0)
+    root_idx = levels[0][0]
+    q_prev = tuple(c[..., root_idx] for c in q_local)
+    p_prev = tuple(c[..., root_idx] for c in t_local)
+    yield root_idx, q_prev, p_prev
+    for idx, parent_pos in levels[1:]:
+        q_parent = tuple(c[..., parent_pos] for c in q_prev)
+        p_parent = tuple(c[..., parent_pos] for c in p_prev)
+        q_prev = hamilton(q_parent, tuple(c[..., idx] for c in q_local))
+        offset = _qrot_planes(q_parent, tuple(c[..., idx] for c in t_local))
+        p_prev = tuple(a + b for a, b in zip(p_parent, offset))
+        yield idx, q_prev, p_prev
+
+
 def fk_arrays(local_rotations, local_translations, parents: np.ndarray):
     """World rotations and positions from local ones.
 
@@ -69,28 +92,28 @@ def fk_arrays(local_rotations, local_translations, parents: np.ndarray):
     one vectorised step per depth level.
     """
     xp = array_namespace(local_rotations, local_translations)
-    levels = depth_levels(parents)
-    q_local = xp.moveaxis(xp.asarray(local_rotations), -1, 0)  # strided views: a copy costs more than it saves
-    t_local = xp.moveaxis(xp.asarray(local_translations), -1, 0)
-    root_idx = levels[0][0]
-    q_prev = tuple(c[..., root_idx] for c in q_local)
-    p_prev = tuple(c[..., root_idx] for c in t_local)
-    q_parts, p_parts, order = [q_prev], [p_prev], [root_idx]
-    for idx, parent_pos in levels[1:]:
-        q_parent = tuple(c[..., parent_pos] for c in q_prev)
-        p_parent = tuple(c[..., parent_pos] for c in p_prev)
-        q_prev = hamilton(q_parent, tuple(c[..., idx] for c in q_local))
-        offset = _qrot_planes(q_parent, tuple(c[..., idx] for c in t_local))
-        p_prev = tuple(a + b for a, b in zip(p_parent, offset))
-        q_parts.append(q_prev)
-        p_parts.append(p_prev)
-        order.append(idx)
+    order, q_parts, p_parts = zip(*_fk_levels(local_rotations, local_translations, parents))
     inverse = np.argsort(np.concatenate(order))
     world_q = xp.stack([xp.concatenate([part[k] for part in q_parts], axis=-1)[..., inverse] for k in range(4)],
                        axis=-1)
     world_p = xp.stack([xp.concatenate([part[k] for part in p_parts], axis=-1)[..., inverse] for k in range(3)],
                        axis=-1)
     return world_q, world_p
+
+
+def position_bounds(motion: Motion, chunk_frames: int = 4096) -> tuple[np.ndarray, np.ndarray]:
+    """``(low (3,), high (3,))``: the box of every joint's world position over every frame
+    (file units) of a motion with at least one frame. Equal to the bounds of
+    :func:`joint_positions`, without assembling the ``(F, J, 3)`` array: the FK planes
+    of ``chunk_frames`` frames at a time (a long take's planes and local translations for
+    all frames at once were several times its data, the peak of a 1M-frame convert)."""
+    lows, highs = [], []
+    for start in range(0, motion.n_frames, chunk_frames):
+        part = motion.sliced(start, start + chunk_frames)
+        planes = [p for _, _, p in _fk_levels(part.rotations, local_translations(part), part.parents)]
+        lows.append([min(float(level[k].min()) for level in planes) for k in range(3)])
+        highs.append([max(float(level[k].max()) for level in planes) for k in range(3)])
+    return np.min(lows, axis=0), np.max(highs, axis=0)
 
 
 def local_translations(motion: Motion) -> np.ndarray:
@@ -115,22 +138,6 @@ def world_rotations_positions(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
 def joint_positions(motion: Motion) -> np.ndarray:
     """World position of every joint at every frame, ``(F, J, 3)`` in file units."""
     return world_rotations_positions(motion)[1]
-
-
-def joint_position_bounds(motion: Motion, chunk_frames: int = 4096) -> tuple[np.ndarray, np.ndarray]:
-    """``(lowest (3,), highest (3,))`` world joint position over all frames and joints, file
-    units; the same numbers as ``joint_positions(motion)``'s ``min``/``max``, computed a chunk
-    of frames at a time so the FK temporaries stay bounded (a long take's full ``(F, J, 3)``
-    positions and FK planes would be several times its data)."""
-    if motion.n_frames == 0:
-        points = rest_positions(motion)
-        return points.min(axis=0), points.max(axis=0)
-    lows, highs = [], []
-    for start in range(0, motion.n_frames, chunk_frames):
-        points = joint_positions(motion.sliced(start, start + chunk_frames)).reshape(-1, 3)
-        lows.append(points.min(axis=0))
-        highs.append(points.max(axis=0))
-    return np.min(lows, axis=0), np.max(highs, axis=0)
 
 
 def fk(motion: Motion) -> np.ndarray:

@@ -32,6 +32,7 @@ from usdmotion.constants import MAX_ABS_VALUE, MAX_FRAMES
 from usdmotion.errors import BvhParseError, UsdMotionWarning
 from usdmotion.io.bvh_header import BvhHeader, frame_rate, header_arrays, parse_header
 from usdmotion.io.bvh_rows import line_of_row, parse_rows
+from usdmotion.kinematics import fk_arrays
 from usdmotion.motion import POSITION_CHANNELS, ROTATION_CHANNELS, Motion, RootOffset
 from usdmotion.parallel import over_slices
 from usdmotion.rotations import half_angles_to_quat
@@ -162,8 +163,7 @@ def parse_bvh(text: str | bytes, path: str | os.PathLike | None = None, lenient:
         raise BvhParseError(path, "non-ASCII character in the motion data", line,
                             start - (raw.rfind(b"\n", 0, start) + 1) + 1)
     n_channels = sum(len(c) for c in header.channels)
-    rows = parse_rows(data, n_channels, header.data_line, path, lenient,
-                      expected_rows=header.n_frames if 0 <= header.n_frames <= MAX_FRAMES else None)
+    rows = parse_rows(data, n_channels, header.data_line, path, lenient)
     values = rows.values
     n_rows = values.shape[0]
     if n_rows != header.n_frames:
@@ -271,8 +271,6 @@ def world_like_position_joints(motion: Motion) -> list[int]:
     parent frame actually moves (a static identity parent at the origin, like Bandai's
     ``joint_Root``, makes local and world the same thing).
     """
-    from usdmotion.kinematics import fk_arrays
-
     if motion.joint_translations is None or motion.n_frames == 0:
         return []
     with_offsets = np.broadcast_to(motion.offsets, motion.joint_translations.shape).copy()

@@ -1,24 +1,34 @@
 """Parsing the BVH motion rows into one ``(F, C)`` float array, vectorised.
 
-Three paths, fastest first:
+Two paths, fastest first:
 
-1. pyarrow's CSV reader (C++, multi-threaded, correctly rounded floats) on the raw
-   bytes, single spaces between values: the layout nearly every exporter writes.
-2. The same after a vectorised NumPy pass that collapses runs of spaces/tabs and strips
-   leading/trailing whitespace and ``\\r`` on every line.
-3. Only when a file is broken: a per-line scan that names the first bad line and
-   column (or, with ``lenient``, keeps the complete rows and says what it dropped).
+1. NumPy's C text reader (``np.loadtxt`` on the bytes, whitespace-separated, no comment
+   character): any runs of spaces and tabs, ``\\r\\n`` line ends and blank lines; floats
+   correctly rounded, like ``float()``. It reads the buffer in chunks (no per-line Python
+   objects) and needs no pyarrow: pyarrow's CSV reader, used here before, cost 0.03 s of
+   import on every BVH read and more CPU time than this on large files
+   (``benchmarks/startup.py``, ``benchmarks/parse_convert.py``).
+2. Only when a file is broken (a row of another length, a token that is not a number,
+   bytes that are not UTF-8): a per-line scan that names the first bad line and column
+   (or, with ``lenient``, keeps the complete rows and says what it dropped). Whatever the
+   first path accepts, this one reads to the same values (``float`` of the same tokens).
 """
 
 from __future__ import annotations
 
 import io
+import re
 import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
 from usdmotion.errors import BvhParseError, UsdMotionWarning
+
+#: A digit: rows without one (blank, or only Unicode blanks such as U+2028, which loadtxt
+#: reads as no data, with a warning) are left to the line scan.
+_DIGIT = re.compile(rb"[0-9]")
+_CR, _LF = re.compile(rb"\r"), re.compile(rb"\n")
 
 
 @dataclass
@@ -30,79 +40,15 @@ class Rows:
     first_dropped_line: int | None = None
 
 
-def _arrow_parse(buf, n_channels: int, expected_rows: int | None = None) -> np.ndarray | None:
-    """``(F, C)`` float64 via pyarrow, or ``None`` if the bytes are not clean rows.
-
-    ``buf`` (bytes or a memoryview of them, not copied) is read in blocks by pyarrow's
-    streaming CSV reader, each block copied into one preallocated array of
-    ``expected_rows`` rows (the header's ``Frames:``; grown if the file has more), so the
-    peak is the array plus a block, not the whole parsed table beside its copy.
-    """
-    import pyarrow as pa
-    import pyarrow.csv as pcsv
-
-    if n_channels == 0 or not len(buf) or bytes(buf[:4096]).isspace() and bytes(buf).isspace():
+def _fast_parse(buf: bytes, n_channels: int) -> np.ndarray | None:
+    """``(F, C)`` float64 via NumPy's text reader, or ``None`` if the bytes are not clean rows."""
+    if n_channels == 0 or _DIGIT.search(buf) is None:
         return None
-    read = pcsv.ReadOptions(autogenerate_column_names=True, block_size=1 << 22)
-    parse = pcsv.ParseOptions(delimiter=" ", quote_char=False, escape_char=False,
-                              double_quote=False, ignore_empty_lines=True)
-    convert = pcsv.ConvertOptions(
-        column_types={f"f{k}": pa.float64() for k in range(n_channels)},
-        null_values=[], strings_can_be_null=False, quoted_strings_can_be_null=False,
-    )
-    # a row takes at least two bytes per value: a Frames: claim beyond that is not allocated
-    capacity = max(min(int(expected_rows or 0), len(buf) // (2 * n_channels) + 1), 1)
-    out = np.empty((capacity, n_channels), dtype=np.float64)
-    rows = 0
     try:
-        reader = pcsv.open_csv(pa.BufferReader(pa.py_buffer(buf)), read_options=read, parse_options=parse,
-                               convert_options=convert)
-        if len(reader.schema) != n_channels:
-            return None
-        for batch in reader:
-            n = batch.num_rows
-            if rows + n > capacity:  # more rows than Frames: says (the caller reports it)
-                capacity = max(2 * capacity, rows + n)
-                out = np.resize(out, (capacity, n_channels))
-            for k, column in enumerate(batch.columns):
-                out[rows:rows + n, k] = _float64_values(column)
-            rows += n
-    except (pa.ArrowInvalid, pa.ArrowTypeError, pa.ArrowNotImplementedError):
+        values = np.loadtxt(io.BytesIO(buf), dtype=np.float64, comments=None, ndmin=2, encoding="utf-8")
+    except ValueError:  # a row of another length, a non-number, invalid UTF-8 (UnicodeDecodeError)
         return None
-    return out if rows == capacity else out[:rows].copy()
-
-
-def _float64_values(chunk) -> np.ndarray:
-    """The values of a null-free float64 pyarrow array, read from its data buffer:
-    ``Array.to_numpy`` would import pandas (0.16 s of start-up) for nothing."""
-    return np.frombuffer(chunk.buffers()[1], dtype=np.float64, count=len(chunk), offset=chunk.offset * 8)
-
-
-def normalize_whitespace(buf: bytes) -> bytes:
-    """Collapse whitespace runs to one space and strip every line (vectorised).
-
-    Removes ``\\r``, tabs and other blanks at line starts and ends; keeps ``\\n``.
-    """
-    b = np.frombuffer(buf, dtype=np.uint8)
-    if b.size == 0:
-        return buf
-    newline = b == 10
-    blank = (b == 32) | (b == 9) | (b == 13) | (b == 11) | (b == 12)
-    content = ~(blank | newline)
-    # a blank is kept iff it is the last of its run, followed by content, and the line
-    # already had content before it
-    next_is_content = np.zeros_like(content)
-    next_is_content[:-1] = content[1:]
-    index = np.arange(b.size)
-    last_newline = np.maximum.accumulate(np.where(newline, index, -1))
-    content_count = np.cumsum(content)
-    count_at_line_start = np.where(last_newline >= 0, content_count[np.maximum(last_newline, 0)], 0)
-    has_content_before = (content_count - content) > count_at_line_start
-    keep = content | newline | (blank & next_is_content & has_content_before)
-    out = b[keep].copy()
-    out[out == 9] = 32
-    out[(out == 11) | (out == 12) | (out == 13)] = 32
-    return out.tobytes()
+    return values if values.size and values.shape[1] == n_channels else None
 
 
 def _line_scan(buf: bytes, n_channels: int, first_line: int, path: str | None,
@@ -149,21 +95,24 @@ def _is_float(text: str) -> bool:
 
 
 def parse_rows(buf: bytes | memoryview, n_channels: int, first_line: int, path: str | None,
-               lenient: bool = False, expected_rows: int | None = None) -> Rows:
+               lenient: bool = False) -> Rows:
     """Parse motion rows ``buf`` (bytes after the ``Frame Time`` line).
 
     Args:
-        buf: the motion rows, any line ends, blank lines allowed (a memoryview is read without copying).
+        buf: the motion rows, any line ends, blank lines allowed; a memoryview of the file's
+            bytes is read as it is (no copy of a long take's rows) unless the rows are broken.
         n_channels: ``C``, values per row declared by the hierarchy.
         first_line: 1-based line number of the first byte of ``buf`` (for errors).
         lenient: drop rows with the wrong number of values (with a warning).
-        expected_rows: the row count the header declares (the array is allocated once for it).
 
     Raises:
         BvhParseError: a row with the wrong number of values or a non-number.
     """
-    if n_channels == 0:
+    if isinstance(buf, memoryview) and (n_channels == 0 or (_CR.search(buf) and not _LF.search(buf))):
         buf = bytes(buf)
+    if isinstance(buf, bytes) and b"\r" in buf and b"\n" not in buf:  # classic-Mac line ends
+        buf = buf.replace(b"\r", b"\n")
+    if n_channels == 0:
         lines = [line for line in buf.split(b"\n") if line.strip()]
         if lines:
             k = next(i for i, line in enumerate(buf.split(b"\n")) if line.strip())
@@ -171,15 +120,10 @@ def parse_rows(buf: bytes | memoryview, n_channels: int, first_line: int, path: 
                 raise BvhParseError(path, "motion row has values but the hierarchy declares no channels",
                                     first_line + k)
         return Rows(np.zeros((0, 0)))
-    values = _arrow_parse(buf, n_channels, expected_rows)  # the buffer as is (no copy): nearly every file
-    if values is None:
-        buf = bytes(buf)
-        if b"\r" in buf and b"\n" not in buf:  # classic-Mac line ends
-            buf = buf.replace(b"\r", b"\n")
-        values = _arrow_parse(normalize_whitespace(buf), n_channels, expected_rows)
+    values = _fast_parse(buf, n_channels)
     if values is not None:
         return Rows(values)
-    rows = _line_scan(buf, n_channels, first_line, path, lenient)
+    rows = _line_scan(bytes(buf), n_channels, first_line, path, lenient)
     if rows.dropped:
         warnings.warn(f"{path}:{rows.first_dropped_line}: dropped {rows.dropped} motion row(s) "
                       f"without exactly {n_channels} values (--lenient)", UsdMotionWarning, stacklevel=2)
