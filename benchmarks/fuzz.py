@@ -1,8 +1,8 @@
 """Mutation-fuzzing campaign over every user input of the CLI (issue 16).
 
-    python benchmarks/fuzz.py --minutes 10 [--seed 1] [--save]
+    python benchmarks/fuzz.py --minutes 10 [--seed 1] [--save] [--only convert_asf,convert_amc]
 
-Mutates valid seeds (BVH, USDA, USDC, GLB, joint-map JSON, segments JSON, USD camera; see
+Mutates valid seeds (BVH, USDA, USDC, GLB, ASF, AMC, joint-map JSON, segments JSON, USD camera; see
 ``tests/fuzz_support.py``) and fuzzes render/retarget options, runs each case through
 the real CLI in-process and classifies it: ``ok`` (exit 0, output reads back), ``clean``
 (exit 2, one ``usdmotion: error:`` line, nothing left) or ``defect``. Prints counts per
@@ -10,8 +10,8 @@ entry point and writes ``benchmarks/results/fuzz.json``. With ``--save`` each di
 defect is kept as a reproducer in ``tests/data/malformed/fuzz/`` (file + command in
 ``manifest.json``), which ``tests/test_bad_input.py`` replays.
 
-GLB input is fuzzed too (byte-level mutations of a binary glTF); ASF/AMC joins when its
-reader is on main.
+GLB input is fuzzed too (byte-level mutations of a binary glTF); ASF and AMC as a pair: a
+mutated ASF under the valid AMC seed, a mutated AMC on the valid ASF seed (convert, info).
 """
 
 from __future__ import annotations
@@ -36,7 +36,8 @@ from fuzz_support import ENTRY_POINTS, MALFORMED, expand, make_seeds, mutate, op
 
 #: Relative weight of each entry point (slow ones — JAX, GL — drawn less often).
 WEIGHTS = {"convert_bvh": 6, "convert_bvh_small": 6, "info_bvh": 3, "convert_usda": 6, "convert_usdc": 3,
-           "info_usda": 3, "convert_glb": 4, "jointmap": 1, "segments": 3, "camera": 1, "render_options": 1, "retarget_options": 1}
+           "info_usda": 3, "convert_glb": 4, "convert_asf": 4, "convert_amc": 4, "info_amc": 2,
+           "jointmap": 1, "segments": 3, "camera": 1, "render_options": 1, "retarget_options": 1}
 FUZZ_DIR = MALFORMED / "fuzz"
 
 
@@ -59,7 +60,7 @@ def _save(case_name: str, data: bytes | None, suffix: str, args: list[str], reas
     manifest_path.write_text(json.dumps(manifest, indent=1) + "\n")
 
 
-def campaign(minutes: float, seed: int, save: bool) -> dict:
+def campaign(minutes: float, seed: int, save: bool, only: list[str] | None = None) -> dict:
     rng = random.Random(seed)
     work = Path(tempfile.mkdtemp(prefix="usdmotion-fuzz-"))
     seeds = make_seeds(work / "seeds")
@@ -67,7 +68,7 @@ def campaign(minutes: float, seed: int, save: bool) -> dict:
     counts: dict[str, collections.Counter] = collections.defaultdict(collections.Counter)
     defects: list[dict] = []
     seen: set = set()
-    names, weights = zip(*WEIGHTS.items())
+    names, weights = zip(*[(k, w) for k, w in WEIGHTS.items() if not only or k in only])
     deadline = time.monotonic() + 60 * minutes
     started = time.monotonic()
     n = 0
@@ -87,7 +88,7 @@ def campaign(minutes: float, seed: int, save: bool) -> dict:
                 data = mutate(seed_bytes[kind], rng)
                 src = case_dir / f"input{suffix}"
                 src.write_bytes(data)
-            args = expand(template, src, out_dir / "out", seeds["walk"])
+            args = expand(template, src, out_dir / "out", seeds["walk"], seeds)
             with warnings.catch_warnings():
                 outcome = run_case(args, out_dir)
             counts[name][outcome.kind] += 1
@@ -96,7 +97,8 @@ def campaign(minutes: float, seed: int, save: bool) -> dict:
                 print(f"DEFECT {name}: {outcome.reason}", flush=True)
                 if save:
                     stored = [a.replace(str(seeds["walk"]), "{walk}").replace(str(src), "{src}")
-                              .replace(str(out_dir / "out"), "{out}") for a in args]
+                              .replace(str(out_dir / "out"), "{out}").replace(str(seeds["asf"]), "{asf}")
+                              .replace(str(seeds["amc"]), "{amc}") for a in args]
                     _save(name, data, suffix, stored, outcome.reason, seen)
             shutil.rmtree(case_dir, ignore_errors=True)
             n += 1
@@ -113,8 +115,12 @@ def main() -> None:
     parser.add_argument("--minutes", type=float, default=1.0)
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--save", action="store_true", help="keep each distinct defect in tests/data/malformed/fuzz")
+    parser.add_argument("--only", help=f"comma-separated entry points (of {', '.join(WEIGHTS)})")
     args = parser.parse_args()
-    result = campaign(args.minutes, args.seed, args.save)
+    only = args.only.split(",") if args.only else None
+    if only and not set(only) <= set(WEIGHTS):
+        parser.error(f"unknown entry points: {', '.join(sorted(set(only) - set(WEIGHTS)))}")
+    result = campaign(args.minutes, args.seed, args.save, only)
     rows = [[name, sum(c.values()), c.get("ok", 0), c.get("clean", 0), c.get("defect", 0)]
             for name, c in result["counts"].items()]
     rows.append(["total", sum(r[1] for r in rows), sum(r[2] for r in rows), sum(r[3] for r in rows),
@@ -122,7 +128,7 @@ def main() -> None:
     print_table(f"fuzz campaign: {result['cases']} cases in {result['seconds']} s (seed {result['seed']})",
                 ["entry point", "cases", "ok", "clean error", "defect"], rows)
     print(f"distinct defects: {result['distinct_defects']}")
-    print(f"wrote {write_results('fuzz', result)}")
+    print(f"wrote {write_results('fuzz' if not only else 'fuzz_only', result)}")
 
 
 if __name__ == "__main__":

@@ -31,6 +31,8 @@ ADVICE = [
     (r"Frame Time|frame rate|^fps|fps must",
      "Give the frame time in seconds (0.008333 for 120 fps); rates from one frame an hour to 1 MHz are accepted."),
     (r"Frames:|--lenient", "Make 'Frames:' match the motion rows, or pass --lenient to keep the complete rows."),
+    (r"guessed from the body|--units auto|--up-axis auto",
+     "The units / up axis were guessed from the body (docs/units_guess.md); give --units / --up-axis to choose."),
     (r"repeats; renamed", "Nothing to do; rename the joint in the source if the new name matters downstream."),
     (r"world positions", "Pass --ignore-joint-positions if the skeleton looks distorted."),
     (r"T-pose frame|--frames 1:", "Pass --frames 1: to skip the first frame."),

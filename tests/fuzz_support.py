@@ -121,10 +121,71 @@ MUTATORS = (_replace_number, _replace_number, _delete_line, _duplicate_line, _sw
 
 # ------------------------------------------------------------------------------- seeds
 
+#: A synthetic CMU-style Acclaim skeleton (name, parent, direction, length in 1/0.45 inch,
+#: axis angles + order, dofs, limits given): 18 bones, both legs and arms, a 2-DOF foot and
+#: clavicle, a DOF-less hip joint. Not copied from a CMU file (``../shared/data`` stays there).
+_ASF_BONES = (
+    ("lhipjoint", "root", (0.56, -0.53, 0.64), 2.4, (0, 0, 0), (), False),
+    ("lfemur", "lhipjoint", (0.34, -0.94, 0), 7.2, (0, 0, 20), ("rx", "ry", "rz"), True),
+    ("ltibia", "lfemur", (0.34, -0.94, 0), 7.4, (0, 0, 20), ("rx",), True),
+    ("lfoot", "ltibia", (0.0, -0.2, 0.98), 2.2, (-90, 7, 20), ("rx", "rz"), True),
+    ("rhipjoint", "root", (-0.56, -0.53, 0.64), 2.4, (0, 0, 0), (), False),
+    ("rfemur", "rhipjoint", (-0.34, -0.94, 0), 7.2, (0, 0, -20), ("rx", "ry", "rz"), True),
+    ("rtibia", "rfemur", (-0.34, -0.94, 0), 7.4, (0, 0, -20), ("rx",), False),
+    ("rfoot", "rtibia", (0.0, -0.2, 0.98), 2.2, (-90, -7, -20), ("rx", "rz"), False),
+    ("lowerback", "root", (0.02, 0.99, -0.05), 2.0, (0, 0, 0), ("rx", "ry", "rz"), True),
+    ("upperback", "lowerback", (0.0, 1.0, 0.01), 2.0, (0, 0, 0), ("rx", "ry", "rz"), False),
+    ("thorax", "upperback", (0.0, 1.0, 0.0), 2.0, (0, 0, 0), ("rx", "ry", "rz"), False),
+    ("head", "thorax", (0.0, 1.0, 0.05), 2.9, (0, 0, 0), ("rx", "ry", "rz"), True),
+    ("lclavicle", "thorax", (0.99, 0.05, 0.0), 3.5, (0, 0, -20), ("ry", "rz"), True),
+    ("lhumerus", "lclavicle", (1.0, 0.0, 0.0), 5.0, (0, 0, -90), ("rx", "ry", "rz"), True),
+    ("lradius", "lhumerus", (1.0, 0.0, 0.0), 3.4, (0, 0, -90), ("rx",), False),
+    ("rclavicle", "thorax", (-0.99, 0.05, 0.0), 3.5, (0, 0, 20), ("ry", "rz"), False),
+    ("rhumerus", "rclavicle", (-1.0, 0.0, 0.0), 5.0, (0, 0, 90), ("rx", "ry", "rz"), False),
+    ("rradius", "rhumerus", (-1.0, 0.0, 0.0), 3.4, (0, 0, 90), ("rx",), False),
+)
+
+
+def asf_seed_text() -> str:
+    """The ASF text of :data:`_ASF_BONES` (CMU layout: units, documentation, root, bonedata,
+    hierarchy)."""
+    lines = ["# synthetic CMU-style skeleton for the fuzzer", ":version 1.10", ":name VICON", ":units",
+             "  mass 1.0", "  length 0.45", "  angle deg", ":documentation", "   synthetic, for tests",
+             ":root", "   order TX TY TZ RX RY RZ", "   axis XYZ", "   position 0 0 0", "   orientation 0 0 0",
+             ":bonedata"]
+    for k, (name, _, direction, length, axis, dofs, limits) in enumerate(_ASF_BONES, start=1):
+        lines += ["  begin", f"     id {k}", f"     name {name}", "     direction " + " ".join(f"{v:g}" for v in direction),
+                  f"     length {length:g}", "     axis " + " ".join(f"{v:g}" for v in axis) + "  XYZ"]
+        if dofs:
+            lines.append("    dof " + " ".join(dofs))
+            if limits:
+                lines += [f"    {'limits' if i == 0 else '      '} (-{60 + 10 * i}.0 {45 + 5 * i}.0)" for i in range(len(dofs))]
+        lines.append("  end")
+    lines += [":hierarchy", "  begin"]
+    children: dict[str, list[str]] = {}
+    for name, parent, *_ in _ASF_BONES:
+        children.setdefault(parent, []).append(name)
+    lines += [f"    {parent} {' '.join(names)}" for parent, names in children.items()]
+    lines += ["  end", ""]
+    return "\n".join(lines)
+
+
+def amc_seed_text(frames: int = 4) -> str:
+    """An AMC of ``frames`` frames on :func:`asf_seed_text` (a small walking sway, degrees)."""
+    lines = ["#!OML:ASF seed.asf", ":FULLY-SPECIFIED", ":DEGREES"]
+    for f in range(1, frames + 1):
+        lines += [str(f), f"root {1.5 * f:g} 17.5 {0.2 * f:g} {-3 + f:g} {2 * f:g} {0.5 * f:g}"]
+        for k, (name, _, _, _, _, dofs, _) in enumerate(_ASF_BONES):
+            if dofs:
+                lines.append(name + "".join(f" {((7 * k + 3 * i + 5 * f) % 40) - 20:g}" for i in range(len(dofs))))
+    return "\n".join(lines) + "\n"
+
+
 
 def make_seeds(folder: Path) -> dict[str, Path]:
     """Valid seed files, written to ``folder``: BVH, USDA, USDC, GLB, joint map, segments JSON,
-    USD camera (from the shipped CMU walk and the malformed corpus's valid base)."""
+    USD camera (from the shipped CMU walk and the malformed corpus's valid base), and a
+    synthetic ASF skeleton with a 4-frame AMC on it."""
     from usdmotion.io import read_motion, write_motion
 
     folder.mkdir(parents=True, exist_ok=True)
@@ -153,11 +214,16 @@ def make_seeds(folder: Path) -> dict[str, Path]:
                       '    double3 xformOp:translate = (0, 1, 6)\n    uniform token[] xformOpOrder = ["xformOp:translate"]\n'
                       '    float2 clippingRange = (0.1, 100)\n}\n')
     seeds["camera"] = camera
+    asf, amc = folder / "seed.asf", folder / "seed.amc"
+    asf.write_text(asf_seed_text())
+    amc.write_text(amc_seed_text())
+    seeds["asf"], seeds["amc"] = asf, amc
     return seeds
 
 
 #: Entry points: name → (seed kind, argument template). ``{src}`` is the mutated file,
-#: ``{out}`` the output, ``{walk}`` the valid walk seed.
+#: ``{out}`` the output, ``{walk}`` the valid walk seed, ``{asf}``/``{amc}`` the valid ASF/AMC seeds
+#: (the other half of a mutated AMC/ASF).
 ENTRY_POINTS = {
     "convert_bvh": ("bvh", ["convert", "{src}", "{out}.usda", "--no-validate"]),
     "convert_bvh_small": ("bvh_small", ["convert", "{src}", "{out}.bvh"]),
@@ -171,6 +237,9 @@ ENTRY_POINTS = {
     "segments": ("segments", ["segment-eval", "{walk}", "{src}"]),
     "camera": ("camera", ["render", "{walk}", "{out}.mp4", "--camera", "{src}", "--size", "64x48",
                           "--frames", "0:2", "--style", "stick"]),
+    "convert_asf": ("asf", ["convert", "{amc}", "{out}.bvh", "--skeleton", "{src}"]),
+    "convert_amc": ("amc", ["convert", "{src}", "{out}.usda", "--skeleton", "{asf}", "--no-validate"]),
+    "info_amc": ("amc", ["info", "{src}", "--skeleton", "{asf}"]),
 }
 
 #: Option values tried on render and retarget (the campaign draws one per case).
@@ -312,5 +381,13 @@ def classify(code: int, stderr: str, args: list[str], out_dir: Path) -> Outcome:
     return Outcome("defect", code, stderr, f"exit {code}: {(lines or [''])[-1][:160]}")
 
 
-def expand(args: list[str], src: Path, out: Path, walk: Path) -> list[str]:
-    return [a.replace("{src}", str(src)).replace("{out}", str(out)).replace("{walk}", str(walk)) for a in args]
+def expand(args: list[str], src: Path, out: Path, walk: Path, seeds: dict[str, Path] | None = None) -> list[str]:
+    """``args`` with the placeholders replaced (``{asf}``/``{amc}`` from ``seeds``)."""
+    values = {"{src}": src, "{out}": out, "{walk}": walk, **{f"{{{k}}}": v for k, v in (seeds or {}).items()
+                                                          if k in ("asf", "amc")}}
+    expanded = []
+    for a in args:
+        for key, value in values.items():
+            a = a.replace(key, str(value))
+        expanded.append(a)
+    return expanded

@@ -232,6 +232,8 @@ MALFORMED = {
     "amc_no_frames": (ASF, ":FULLY-SPECIFIED\n:DEGREES\n", AmcParseError, 2, "no frames"),
     "amc_empty": (ASF, "", AmcParseError, 1, "empty AMC file"),
     "amc_header_after_frames": (ASF, AMC + ":RADIANS\n", AmcParseError, 12, "header line ':RADIANS' after"),
+    "amc_frame_number_huge": (ASF, _edit(AMC, "\n2\n", "\n99999999999999999999\n"), AmcParseError, 8,
+                              "frame number 99999999999999999999 is too large"),
 }
 
 

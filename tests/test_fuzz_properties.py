@@ -46,12 +46,12 @@ def _mutated(seed: bytes, case) -> bytes:
     return data
 
 
-def _assert_refused_cleanly(error: BaseException, path: Path) -> None:
+def _assert_refused_cleanly(error: BaseException, path: Path, other: Path | None = None) -> None:
     assert isinstance(error, UsdMotionError), f"{type(error).__name__}: {error}"
     text = str(error)
     assert "\n" not in text.strip() and text.strip()
     if isinstance(error, InputError):
-        assert error.path == str(path)
+        assert error.path in (str(path), str(other)), error.path
 
 
 def _assert_usable(motion) -> None:
@@ -63,15 +63,17 @@ def _assert_usable(motion) -> None:
     assert 0 < motion.fps < math.inf and 0 < motion.meters_per_unit < math.inf
 
 
-def _read_or_refuse(path: Path) -> None:
+def _read_or_refuse(path: Path, skeleton: Path | None = None) -> None:
+    """``path`` (with the ASF ``skeleton`` of an AMC) reads into a usable motion or is refused by
+    a typed one-line error naming the mutated file, or the skeleton where the two no longer fit."""
     from usdmotion.io import read_motion
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # usdmotion's own warnings (e.g. --lenient) are allowed
         try:
-            motion = read_motion(path)
+            motion = read_motion(path, skeleton=skeleton)
         except Exception as exc:  # noqa: BLE001 - the property: only typed errors
-            _assert_refused_cleanly(exc, path)
+            _assert_refused_cleanly(exc, path, skeleton)
             return
     _assert_usable(motion)
 
@@ -86,6 +88,24 @@ def test_mutated_motion_files_are_read_or_refused_cleanly(seeds, scratch, kind, 
         path = scratch / f"case{seeds[kind].suffix}"
         path.write_bytes(_mutated(seed, case))
         _read_or_refuse(path)
+
+    check()
+
+
+@pytest.mark.parametrize("kind, examples", [("asf", 300), ("amc", 300)])
+def test_mutated_asf_and_amc_are_read_or_refused_cleanly(seeds, scratch, kind, examples):
+    """A mutated ASF under the valid AMC, or a mutated AMC on the valid ASF (issue 16)."""
+    seed = seeds[kind].read_bytes()
+
+    @settings(max_examples=examples, **SETTINGS)
+    @given(case=mutation)
+    def check(case):
+        path = scratch / f"case.{kind}"
+        path.write_bytes(_mutated(seed, case))
+        if kind == "asf":
+            _read_or_refuse(seeds["amc"], skeleton=path)
+        else:
+            _read_or_refuse(path, skeleton=seeds["asf"])
 
     check()
 

@@ -146,7 +146,7 @@ def write_map(tmp_path, doc, name="map.json"):
     ([], "give --target, or joints to --remove / --add"),
     (["--remove", "LThumb", "--scale", "-2"], "--scale must be a positive number"),
     (["--remove", "LThumb", "--scale", "big"], "--scale must be 'units', 'auto' or a positive number"),
-    (["--target", "DAZ"], "units look mismatched"),
+    (["--target", "DAZ", "--units", "cm"], "units look mismatched"),  # a CMU take said to be cm
     (["--target", "DAZ", "--units", "asf", "--directions", "mean"], "--directions mean needs a target derived"),
     (["--target", "DAZ", "--units", "asf", "--map", "MAP:{\"joints\": {\"hip\": null}}"], "could be matched"),
     (["--target", "CYCLE"], "cyc.usda"),

@@ -6,6 +6,7 @@ copies of a real take rescaled or turned Z-up here by exact transforms."""
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -69,7 +70,7 @@ def test_read_motion_auto_states_the_guess_and_its_reason(shared_file):
 def test_implausible_units_warn_loudly(shared_file):
     with pytest.warns(UserWarning, match=r"IMPLAUSIBLE UNITS: at 0.01 m per unit this person is 0.2\d m tall.*"
                                          r"--units asf"):
-        read_motion(shared_file(WALK))  # CMU units read as cm: a 26 cm person
+        read_motion(shared_file(WALK), units="cm")  # CMU units read as cm: a 26 cm person
     assert implausible_height(read_bvh(shared_file(CM))) is None
 
 
@@ -77,3 +78,48 @@ def test_no_guess_for_a_non_human_skeleton_keeps_the_defaults(shared_file):
     with pytest.warns(UserWarning, match="no guess, keeping 0.01 m per unit"):
         motion = read_motion(shared_file("edge_cases/fairmotion_sinusoidal_no_end_site.bvh"), units="auto")
     assert motion.meters_per_unit == 0.01
+
+
+@pytest.mark.parametrize(("name", "units", "up", "warned"), [
+    (WALK, "asf", "Y", ["units guessed from the body: asf (the ankle-to-head chain is"]),
+    (ZUP, "in", "Z", ["units guessed from the body: in", "up axis guessed from the body: Z (the head"]),
+    (CM, "cm", "Y", []),
+    ("edge_cases/fairmotion_sinusoidal_no_end_site.bvh", "cm", "Y", [])])
+def test_auto_is_the_default_for_bvh_and_warns_only_where_it_changes_cm_y_up(shared_file, name, units, up, warned):
+    """Without --units/--up-axis a BVH reads in the units and up axis the data README states
+    (a non-human skeleton keeps cm, Y-up); a warning states the guess and its reason only where
+    it is not the nominal cm / Y-up, and nothing is implausible."""
+    import warnings
+
+    with warnings.catch_warnings(record=True) as record:
+        warnings.simplefilter("always")
+        motion = read_motion(shared_file(name))
+    texts = [str(w.message) for w in record]
+    assert motion.meters_per_unit == METERS_PER_UNIT[units] and motion.up_axis == up
+    assert len(texts) == len(warned) and all(any(w in t for t in texts) for w in warned), texts
+    explicit = read_motion(shared_file(name), units=units, up_axis=up)
+    assert np.array_equal(joint_positions(explicit), joint_positions(motion))
+
+
+def test_info_shows_the_guess_and_its_reason(shared_file, capsys):
+    from usdmotion.cli import main
+
+    assert main(["info", str(shared_file(ZUP)), "--json"]) == 0
+    import json
+
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["units"] == "in" and doc["up_axis"] == "Z"
+    assert doc["guessed"]["units"]["value"] == "in" and "ankle-to-head chain" in doc["guessed"]["units"]["reason"]
+    assert doc["guessed"]["up_axis"]["value"] == "Z" and "+Z from the ankles" in doc["guessed"]["up_axis"]["reason"]
+    assert main(["info", str(shared_file(ZUP)), "--units", "in", "--up-axis", "Z", "--json"]) == 0
+    assert "guessed" not in json.loads(capsys.readouterr().out)
+
+
+def test_a_bvh_without_frames_reads_with_the_default_guess(tmp_path):
+    """The up-axis guess uses the rest pose when there is no frame (default reading)."""
+    from usdmotion.io.bvh_write import write_bvh
+
+    walk = read_bvh(Path(__file__).resolve().parents[1] / "usdmotion" / "data" / "cmu_12_01_walk.bvh")
+    path = write_bvh(walk.sliced(0, 0), tmp_path / "empty.bvh")
+    motion = read_motion(path)
+    assert motion.n_frames == 0 and motion.up_axis == "Y" and motion.meters_per_unit == METERS_PER_UNIT["asf"]

@@ -81,8 +81,13 @@ def test_blender_skinned_character_with_shape_keys_is_carried_to_the_output(expo
     skel = next(UsdSkel.Skeleton(p) for p in stage.Traverse() if p.IsA(UsdSkel.Skeleton))
     times = UsdSkel.Cache().GetSkelQuery(skel).GetAnimQuery().GetJointTransformTimeSamples()
     expected = usd_core_skinned_world(entry["file"], times)["Body"]
-    with pytest.warns(UserWarning, match="blend shapes are kept but their animated weights are not"):
-        out = write_motion(motion, tmp_path / "carried.usdc")
+    out = write_motion(motion, tmp_path / "carried.usdc")
+    # the shape key's animated value (Blender writes it as SkelAnimation blendShapeWeights) is carried
+    from test_usd_blend_weights import usd_core_weights
+
+    names, weights = usd_core_weights(out)
+    src_names, src_weights = usd_core_weights(entry["file"])
+    assert names == src_names == ["Smile"] and np.array_equal(weights, src_weights) and np.ptp(src_weights) > 0
     got = usd_core_skinned_world(out, range(len(times)))["Body"]
     assert np.abs(got - expected).max() <= TOL * float(np.ptp(expected.reshape(-1, 3), axis=0).max())
     from usdmotion.skin import skin_frames

@@ -101,14 +101,19 @@ def fk_arrays(local_rotations, local_translations, parents: np.ndarray):
     return world_q, world_p
 
 
-def position_bounds(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
+def position_bounds(motion: Motion, chunk_frames: int = 4096) -> tuple[np.ndarray, np.ndarray]:
     """``(low (3,), high (3,))``: the box of every joint's world position over every frame
     (file units) of a motion with at least one frame. Equal to the bounds of
-    :func:`joint_positions`, without assembling the ``(F, J, 3)`` array."""
-    planes = [p for _, _, p in _fk_levels(motion.rotations, local_translations(motion), motion.parents)]
-    low = np.array([min(float(level[k].min()) for level in planes) for k in range(3)])
-    high = np.array([max(float(level[k].max()) for level in planes) for k in range(3)])
-    return low, high
+    :func:`joint_positions`, without assembling the ``(F, J, 3)`` array: the FK planes
+    of ``chunk_frames`` frames at a time (a long take's planes and local translations for
+    all frames at once were several times its data, the peak of a 1M-frame convert)."""
+    lows, highs = [], []
+    for start in range(0, motion.n_frames, chunk_frames):
+        part = motion.sliced(start, start + chunk_frames)
+        planes = [p for _, _, p in _fk_levels(part.rotations, local_translations(part), part.parents)]
+        lows.append([min(float(level[k].min()) for level in planes) for k in range(3)])
+        highs.append([max(float(level[k].max()) for level in planes) for k in range(3)])
+    return np.min(lows, axis=0), np.max(highs, axis=0)
 
 
 def local_translations(motion: Motion) -> np.ndarray:

@@ -118,6 +118,12 @@ class Motion:
             (:class:`usdmotion.io.usd_skin.SkinnedMesh`, bound by joint *name*); kept by
             operations that keep the skeleton, written back by the USD writer, which
             leaves out (with a warning) any mesh whose joints are gone or changed.
+        blend_shape_names: ``S`` blend shape names the weights refer to (a USD
+            SkelAnimation's ``blendShapes``), ``()`` when none are animated.
+        blend_shape_weights: ``(F, S)`` animated blend-shape weights, or ``None``. Sliced
+            with the frames; resampled (linearly, as USD interpolates them) where an
+            operation says which source frames its new frames come from
+            (:meth:`with_frames` ``frame_times``).
 
     Arrays passed in are copied into read-only arrays, except arrays that are already
     read-only and own their data (another Motion's, or ones a reader hands over): those
@@ -138,6 +144,8 @@ class Motion:
     root_offset: RootOffset = "add"
     source_channels: np.ndarray | None = field(default=None, repr=False)
     meshes: tuple = field(default=(), repr=False)
+    blend_shape_names: tuple[str, ...] = ()
+    blend_shape_weights: np.ndarray | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
@@ -187,12 +195,16 @@ class Motion:
                                      f"(distinct names among {', '.join(CHANNEL_NAMES)})")
             set_(self, "channels", channels)
         if self.source_channels is not None:
-            sc = np.array(self.source_channels, dtype=np.float64)
+            sc = self.source_channels  # shared like the other arrays when read-only and owning its data
+            if not (isinstance(sc, np.ndarray) and sc.dtype == np.float64 and not sc.flags.writeable
+                    and sc.base is None):
+                sc = np.array(sc, dtype=np.float64)
             if sc.ndim != 2 or sc.shape[0] != n_frames:
                 raise ValueError(f"source_channels must have shape ({n_frames}, C), got {sc.shape}; "
                                  "use Motion.with_frames() when the frame count changes")
             sc.setflags(write=False)
             set_(self, "source_channels", sc)
+        self._check_blend_shape_weights(n_frames)
         if not (MIN_FPS <= self.fps <= MAX_FPS):
             raise ValueError(f"fps must be a number in {MIN_FPS:.3g}..{MAX_FPS:g} (one frame an hour to a "
                              f"megahertz), got {self.fps}")
@@ -205,6 +217,16 @@ class Motion:
             raise ValueError(f"up_axis must be one of {UP_AXES}, got {self.up_axis!r}")
         if self.root_offset not in ("add", "replace"):
             raise ValueError(f"root_offset must be 'add' or 'replace', got {self.root_offset!r}")
+
+    def _check_blend_shape_weights(self, n_frames: int) -> None:
+        names = tuple(str(n) for n in self.blend_shape_names)
+        object.__setattr__(self, "blend_shape_names", names)
+        if self.blend_shape_weights is None:
+            return
+        weights = _frozen(self.blend_shape_weights, np.float64, (len(names),), "blend_shape_weights")
+        if weights.shape != (n_frames, len(names)):
+            raise ValueError(f"blend_shape_weights must have shape ({n_frames}, {len(names)}), got {weights.shape}")
+        object.__setattr__(self, "blend_shape_weights", weights)
 
     # ----------------------------------------------------------------- shape helpers
     @property
@@ -247,11 +269,14 @@ class Motion:
         return subtree_indices(self.parents, joint)
 
     def with_frames(self, rotations: np.ndarray, root_translation: np.ndarray,
-                    joint_translations: np.ndarray | None = None, fps: float | None = None) -> Motion:
+                    joint_translations: np.ndarray | None = None, fps: float | None = None,
+                    frame_times: np.ndarray | None = None) -> Motion:
         """A copy with new per-frame data (any frame count, optionally a new fps).
 
         Drops ``source_channels`` (the Euler hint of the frames as read), which no longer
-        describes the new frames.
+        describes the new frames. Blend-shape weights follow the frames: resampled
+        linearly at ``frame_times`` (``(F',)`` fractional source frames of the new frames)
+        when given, kept when the frame count is unchanged, else dropped with a warning.
         """
         return dataclasses.replace(
             self,
@@ -260,7 +285,28 @@ class Motion:
             joint_translations=joint_translations,
             fps=self.fps if fps is None else fps,
             source_channels=None,
+            blend_shape_weights=self._weights_at(frame_times, len(rotations)),
         )
+
+    def _weights_at(self, frame_times: np.ndarray | None, n_frames: int) -> np.ndarray | None:
+        """The blend-shape weights of ``n_frames`` new frames (see :meth:`with_frames`)."""
+        weights = self.blend_shape_weights
+        if weights is None or (frame_times is None and n_frames == self.n_frames):
+            return weights
+        if frame_times is None or len(frame_times) != n_frames or self.n_frames == 0:
+            import warnings
+
+            from usdmotion.errors import UsdMotionWarning
+
+            warnings.warn(f"the animated blend-shape weights ({', '.join(self.blend_shape_names[:3])}…) are left "
+                          "out: this operation does not say which frames its new frames come from",
+                          UsdMotionWarning, stacklevel=3)
+            return None
+        tau = np.clip(np.asarray(frame_times, np.float64), 0.0, self.n_frames - 1)
+        i0 = np.minimum(np.floor(tau).astype(np.int64), max(self.n_frames - 2, 0))
+        i1 = np.minimum(i0 + 1, self.n_frames - 1)
+        t = (tau - i0)[:, None]
+        return weights[i0] * (1.0 - t) + weights[i1] * t
 
     def sliced(self, start: int | None = None, stop: int | None = None) -> Motion:
         """Frames ``start:stop`` (Python slice, unchecked) as a new motion.
@@ -275,4 +321,5 @@ class Motion:
             root_translation=self.root_translation[frames],
             joint_translations=None if self.joint_translations is None else self.joint_translations[frames],
             source_channels=None if self.source_channels is None else self.source_channels[frames],
+            blend_shape_weights=None if self.blend_shape_weights is None else self.blend_shape_weights[frames],
         )

@@ -24,7 +24,7 @@ import numpy as np
 from usdmotion.anthropometry import find_landmarks
 from usdmotion.constants import METERS_PER_UNIT
 from usdmotion.errors import UsdMotionWarning
-from usdmotion.kinematics import joint_positions
+from usdmotion.kinematics import joint_positions, rest_positions
 from usdmotion.motion import Motion
 
 CANDIDATES = ("cm", "m", "mm", "in", "asf", "ft")
@@ -82,7 +82,7 @@ def guess_body(motion: Motion, up: bool = True) -> BodyGuess:
         return BodyGuess(None, why, None, why)
     up_axis, up_reason = None, "not guessed"
     if up:
-        positions = _sample_positions(motion)
+        positions = _sample_positions(motion) if motion.n_frames else rest_positions(motion)[None]
         vector = np.median(positions[:, head] - positions[:, ankles].mean(axis=1), axis=0)
         up_axis, up_reason = _up_from(vector, motion.joint_names[head])
     chain = float(np.mean([_chain_length(motion.parents, motion.offsets, head, a) for a in ankles]))
@@ -124,10 +124,16 @@ def implausible_height(motion: Motion, guess: BodyGuess | None = None) -> str | 
             f"(ankle to head); pass the file's real units{hint}")
 
 
-def apply_body_guess(motion: Motion, source, auto_units: bool, auto_up: bool) -> Motion:
+def apply_body_guess(motion: Motion, source, auto_units: bool, auto_up: bool, implicit_units: bool = False,
+                     implicit_up: bool = False) -> Motion:
     """``motion`` with ``meters_per_unit`` / ``up_axis`` replaced by the body's guess where
-    asked (``auto_units``, ``auto_up``), each guess stated as a warning with its reason
-    (or why there is none and the value kept); then the implausible-height warning."""
+    asked (``auto_units``, ``auto_up``); then the implausible-height warning.
+
+    Asked for (``--units auto`` / ``--up-axis auto``), each guess, or why there is none and
+    the value kept, is a warning with its reason. ``implicit_*`` (a BVH read without the
+    option: auto is the default): a warning only where the guess changes the file's nominal
+    reading (cm, Y-up), with its reason and how to choose otherwise; no guess keeps it quietly.
+    """
     import dataclasses
     import warnings
 
@@ -136,17 +142,25 @@ def apply_body_guess(motion: Motion, source, auto_units: bool, auto_up: bool) ->
     if auto_units:
         if guess.units is not None:
             changes["meters_per_unit"] = guess.meters_per_unit
-            warnings.warn(f"{source}: --units auto: {guess.units} ({guess.units_reason})", UsdMotionWarning,
-                          stacklevel=2)
-        else:
+            if not implicit_units:
+                warnings.warn(f"{source}: --units auto: {guess.units} ({guess.units_reason})", UsdMotionWarning,
+                              stacklevel=2)
+            elif guess.meters_per_unit != motion.meters_per_unit:
+                warnings.warn(f"{source}: units guessed from the body: {guess.units} ({guess.units_reason}); "
+                              "give --units to choose", UsdMotionWarning, stacklevel=2)
+        elif not implicit_units:
             warnings.warn(f"{source}: --units auto: no guess, keeping {motion.meters_per_unit:g} m per unit "
                           f"({guess.units_reason})", UsdMotionWarning, stacklevel=2)
     if auto_up:
         if guess.up_axis is not None:
             changes["up_axis"] = guess.up_axis
-            warnings.warn(f"{source}: --up-axis auto: {guess.up_axis} ({guess.up_reason})", UsdMotionWarning,
-                          stacklevel=2)
-        else:
+            if not implicit_up:
+                warnings.warn(f"{source}: --up-axis auto: {guess.up_axis} ({guess.up_reason})", UsdMotionWarning,
+                              stacklevel=2)
+            elif guess.up_axis != motion.up_axis:
+                warnings.warn(f"{source}: up axis guessed from the body: {guess.up_axis} ({guess.up_reason}); "
+                              "give --up-axis to choose", UsdMotionWarning, stacklevel=2)
+        elif not implicit_up:
             warnings.warn(f"{source}: --up-axis auto: no guess, keeping {motion.up_axis} ({guess.up_reason})",
                           UsdMotionWarning, stacklevel=2)
     motion = dataclasses.replace(motion, **changes) if changes else motion

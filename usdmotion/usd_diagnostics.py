@@ -11,6 +11,12 @@ file …/stage.cpp : '…'`` records, and warnings go straight to stderr
   :class:`~usdmotion.errors.UsdReadError` naming the file and, for a text-format parse
   error, its ``.usda`` line.
 * :func:`usd_error_message` does the latter for a ``Tf.ErrorException`` caught elsewhere.
+* :func:`native_stderr` catches what is printed straight to file descriptor 2, past USD's
+  diagnostic system and the CLI (a corrupted ``.usdc`` makes the crate reader print
+  ``failed call to posix_madvise(…)``, the Python bindings ``TypeError: No to_python …``):
+  :func:`usd_diagnostics` redirects fd 2 to a temporary file for the block and turns what
+  was captured into its warning, or drops it when the block raised (the error says what
+  is wrong); usdmotion's own lines written meanwhile are passed on.
 """
 
 from __future__ import annotations
@@ -18,6 +24,9 @@ from __future__ import annotations
 import contextlib
 import os
 import re
+import sys
+import tempfile
+import threading
 import warnings
 from collections.abc import Iterator
 
@@ -28,6 +37,7 @@ MAX_WARNINGS = 5
 
 _RECORD = re.compile(r"Error in '[^']*' at line \d+ in file [^:]* : '(.*?)'\s*(?=\n\s*Error in |\Z)", re.S)
 _NAMESPACE = re.compile(r"pxrInternal_v\w*?__pxrReserved__::|\b\w+::")
+_CONTROL = re.compile(r"\x1b\[[0-9;?]*[A-Za-z]|\x1b\][^\x07]*\x07|[\r\x00-\x08\x0b-\x1f]")
 _WHERE = re.compile(r"^@?(?P<file>[^@\n]*?)@?:(?P<line>\d+):(?:(?P<col>\d+):)?\s*(?P<msg>.*)$", re.S)
 
 
@@ -67,6 +77,90 @@ def _warning_text(diagnostic) -> str:
     return text.replace(" -- ", ": ", 1) if text.startswith("/") else text
 
 
+class _Redirect:
+    """fd 2 redirected to a temporary file, shared by every block open at once (threads,
+    nesting): the first block in redirects, the last one out restores. Each block, as it
+    ends, takes what arrived since the last block took its share; usdmotion's own lines
+    and terminal drawing (a progress bar) among it go on to the real stderr at once, the
+    rest (what usd-core's C++ or the Python bindings printed) is the block's to report."""
+
+    lock = threading.Lock()
+    depth = 0
+    file = None      # the temporary file behind fd 2
+    saved_fd = -1    # the real stderr
+    taken = 0        # bytes of the file already handed out
+
+    @classmethod
+    def enter(cls) -> None:
+        with cls.lock:
+            _flush_python_stderr()
+            if cls.depth == 0:
+                cls.file = tempfile.TemporaryFile()
+                cls.saved_fd, cls.taken = os.dup(2), 0
+                os.dup2(cls.file.fileno(), 2)
+            cls.depth += 1
+
+    @classmethod
+    def leave(cls) -> list[str]:
+        """The foreign lines captured since the last call; ours are passed on."""
+        with cls.lock:
+            _flush_python_stderr()
+            os.lseek(cls.file.fileno(), cls.taken, os.SEEK_SET)
+            raw = b""
+            while chunk := os.read(cls.file.fileno(), 1 << 16):
+                raw += chunk
+            cls.taken += len(raw)
+            ours, foreign = _sorted_lines(raw)
+            if ours:
+                os.write(cls.saved_fd, ours)
+            cls.depth -= 1
+            if cls.depth == 0:
+                os.dup2(cls.saved_fd, 2)
+                os.close(cls.saved_fd)
+                cls.file.close()
+                cls.file, cls.saved_fd = None, -1
+            return foreign
+
+
+def _flush_python_stderr() -> None:
+    for stream in {id(s): s for s in (sys.stderr, sys.__stderr__) if s is not None}.values():
+        with contextlib.suppress(Exception):
+            stream.flush()
+
+
+def _sorted_lines(raw: bytes) -> tuple[bytes, list[str]]:
+    """``(ours, foreign)``: usdmotion's own lines and terminal drawing as raw bytes, the other
+    non-blank lines as text without control characters."""
+    ours, foreign = [], []
+    for line in raw.splitlines(keepends=True):
+        text = line.decode("utf-8", "replace")
+        if text.startswith("usdmotion: ") or "\x1b" in text or text.rstrip("\n").count("\r"):
+            ours.append(line)
+        elif cleaned := _CONTROL.sub("", text).strip():
+            foreign.append(cleaned)
+    return b"".join(ours), foreign
+
+
+@contextlib.contextmanager
+def native_stderr() -> Iterator[list[str]]:
+    """Capture what is written to file descriptor 2 during the block, by native code
+    (usd-core's C++ writes there directly) or Python printing past the CLI (the bindings'
+    ``TypeError: No to_python … converter`` lines).
+
+    Yields a list that holds, after the block, those lines (control characters and blank
+    lines removed). usdmotion's own lines (``usdmotion: warning: …``) and terminal drawing
+    written meanwhile are passed on to the real stderr when the block ends. Safe to nest
+    and to use from several threads at once (fd 2 is the process's: a line another thread
+    writes meanwhile is reported by whichever block ends first).
+    """
+    lines: list[str] = []
+    _Redirect.enter()
+    try:
+        yield lines
+    finally:
+        lines[:] = _Redirect.leave()
+
+
 @contextlib.contextmanager
 def usd_diagnostics(path: str | os.PathLike) -> Iterator[None]:
     """Trap USD diagnostics raised inside the block (reading ``path``).
@@ -81,7 +175,7 @@ def usd_diagnostics(path: str | os.PathLike) -> Iterator[None]:
     from pxr import Tf
 
     path = os.fspath(path)
-    with Tf.DiagnosticTrap() as trap:
+    with native_stderr() as printed, Tf.DiagnosticTrap() as trap:
         def trapped() -> list[str]:
             texts = [_warning_text(d) for d in list(trap.GetWarnings()) + list(trap.GetErrors())]
             trap.Clear()
@@ -115,7 +209,8 @@ def usd_diagnostics(path: str | os.PathLike) -> Iterator[None]:
         except BaseException:
             trapped()
             raise
-        _reissue(path, trapped())
+        texts = trapped()
+    _reissue(path, texts + [_clean(line) for line in printed])
 
 
 def _reissue(path: str, texts: list[str]) -> None:

@@ -141,11 +141,11 @@ def motion_facts(motion) -> dict:
 
 def convert_task(job: Job, row: dict) -> dict:
     """``usdmotion convert SRC OUT [--mesh]``: validation problems become warnings."""
-    from usdmotion.io.convert import check_convert_paths, convert_motion
+    from usdmotion.io.convert import check_convert_paths, convert_motion, kept_for
 
     out = job.outputs["motion"]
     check_convert_paths(job.source, out, job.params.get("mesh", False))
-    motion = _read(job)
+    motion = kept_for(_read(job), out)
     for problem in convert_motion(motion, out, job.params.get("mesh", False), job.params.get("validate", True)):
         warnings.warn(f"{out}: {problem}", stacklevel=1)
     return motion_facts(motion)

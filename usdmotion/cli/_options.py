@@ -33,10 +33,12 @@ InputPath = Annotated[Path, typer.Argument(help="Input motion: .bvh, .usd, .usda
 Units = Annotated[str | None, typer.Option(
     "--units", help="Length unit of a BVH file: cm, m, mm, in, ft, asf (CMU, 1/0.45 in), or metres per "
                     "unit as a number, or auto (guessed from the body, reason given; see docs/units_guess.md). "
-                    "Default: cm for BVH; the file's for USD and glTF.", show_default=False)]
+                    "Default for BVH: guessed from the body (a warning when not cm; cm when the skeleton is not "
+                    "recognisably human); the file's for USD and glTF.", show_default=False)]
 UpAxis = Annotated[UpAxisChoice | None, typer.Option(
-    "--up-axis", help="Vertical axis of a BVH file (default Y), or auto (guessed from the body); overrides a "
-                      "USD or glTF file's.", show_default=False,
+    "--up-axis", help="Vertical axis of a BVH file, or auto (guessed from the body, reason given). Default for "
+                      "BVH: guessed (a warning when not Y; Y when not guessed); overrides a USD or glTF file's.",
+    show_default=False,
     case_sensitive=False)]
 RootOffset = Annotated[RootOffsetChoice, typer.Option(
     "--root-offset", help="BVH root OFFSET: 'add' to the root position channels (BVH spec), 'replace' by "

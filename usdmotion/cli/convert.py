@@ -30,11 +30,11 @@ def convert(
     read: ReadOptions = ReadOptions(),
 ) -> None:
     """Convert a motion between BVH, OpenUSD (UsdSkel) and glTF 2.0 (GLB)."""
-    from usdmotion.io.convert import check_convert_paths, convert_motion
+    from usdmotion.io.convert import check_convert_paths, convert_motion, kept_for
 
     check_convert_paths(source, output, mesh)
     start = time.perf_counter()
-    motion = read.read(source)
+    motion = kept_for(read.read(source), output)
     if fps is not None:
         from usdmotion.ops.edit.timewarp import resample
 

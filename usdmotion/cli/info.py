@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import warnings
 
 import typer
 
@@ -22,11 +23,21 @@ def info(
 
     motion = read.read(source)
     summary = {"file": str(source), **describe(motion)}
+    guessed = [o for o, v in (("units", read.units), ("up_axis", read.up_axis)) if v is None or v == "auto"]
+    if source.suffix.lower() == ".bvh" and guessed:  # BVH states neither: say what the body says
+        from usdmotion.units_guess import guess_body
+
+        guess = guess_body(motion, up="up_axis" in guessed)
+        summary["guessed"] = {o: {"value": getattr(guess, o), "reason": getattr(guess, f"{o.split('_')[0]}_reason")}
+                              for o in guessed}
     if source.suffix.lower() in (".usd", ".usda", ".usdc", ".usdz"):
         from usdmotion.io.usd import _open_stage
         from usdmotion.io.usd_read import list_skeletons
+        from usdmotion.usd_diagnostics import usd_diagnostics
 
-        summary["skeletons"] = list_skeletons(_open_stage(source))
+        with warnings.catch_warnings(), usd_diagnostics(source):  # what USD says was said by read()
+            warnings.simplefilter("ignore")
+            summary["skeletons"] = list_skeletons(_open_stage(source))
         summary["meshes"] = [{"name": m.name, "points": len(m.points), "blend_shapes": [b.name for b in m.blend_shapes]}
                              for m in motion.meshes]
     if as_json:
@@ -49,6 +60,9 @@ def _print_summary(s: dict) -> None:
     console.print(f"  units       1 unit = {unit.removeprefix('1 ')} ({s['meters_per_unit']:g} m), {s['up_axis']}-up, "
                   f"root offset {s['root_offset']}, rest extent {s['rest_extent']:.4g} units "
                   f"({s['rest_extent_m']:.3g} m)")
+    for option, g in s.get("guessed", {}).items():
+        what = "units" if option == "units" else "up axis"
+        console.print(f"  guessed     {what} {g['value'] or 'none (kept)'}: {g['reason']}", highlight=False)
     if len(s.get("skeletons", [])) > 1:
         console.print(f"  skeletons   {', '.join(s['skeletons'])} (choose with --skeleton)")
     for m in s.get("meshes", []):

@@ -45,9 +45,11 @@ def read_motion(path: str | os.PathLike, root_offset: str = "auto", units: str |
                 skeleton: str | os.PathLike | None = None, resample: bool = False) -> Motion:
     """Read a BVH, UsdSkel, glTF 2.0 (.glb/.gltf) or Acclaim AMC file.
 
-    For BVH, ``units`` (default ``"cm"``) and ``up_axis`` (default ``"Y"``) state what the
-    file does not; ``"auto"`` guesses them from the body (:mod:`usdmotion.units_guess`,
-    with a warning giving the reason). For USD and glTF they come from the file (glTF:
+    For BVH, ``units`` and ``up_axis`` state what the file does not; by default (``None``)
+    both are guessed from the body (:mod:`usdmotion.units_guess`; right on all 34 files of
+    the shared data, see ``docs/units_guess.md``), with a warning where the guess is not
+    the nominal cm / Y-up, and cm / Y-up kept when the skeleton is not recognisably human;
+    ``"auto"`` guesses them too and always states the guess and its reason. For USD and glTF they come from the file (glTF:
     metres, Y up, or the source's where usdmotion wrote it) and, if given (not
     ``"auto"``), override it. For AMC, units come from the ASF unless given.
     ``skeleton`` names the ASF skeleton file of ``.amc`` input (default: the one beside it, see
@@ -124,7 +126,8 @@ def _read(path: Path, root_offset: str, units, up_axis, lenient: bool, ignore_jo
         motion = read_bvh(path, root_offset=root_offset, units="cm" if units is None or _is_auto(units) else units,
                           up_axis="Y" if up_axis is None or _is_auto(up_axis) else up_axis, lenient=lenient,
                           ignore_joint_positions=ignore_joint_positions)
-        return apply_body_guess(motion, path, _is_auto(units), _is_auto(up_axis))
+        return apply_body_guess(motion, path, units is None or _is_auto(units), up_axis is None or _is_auto(up_axis),
+                                implicit_units=units is None, implicit_up=up_axis is None)
     if kind == "usd":
         from usdmotion.io.usd import read_usd
         from usdmotion.usd_diagnostics import usd_diagnostics

@@ -35,6 +35,8 @@ AMC_FPS = 120.0
 LAYOUTS = ("cgspeed", "acclaim")
 ROOT_CHANNELS = ("Xposition", "Yposition", "Zposition", "Zrotation", "Yrotation", "Xrotation")
 JOINT_CHANNELS = ("Zrotation", "Yrotation", "Xrotation")
+#: Frame numbers longer than this are refused (10⁹ frames at 120 fps is 96 days).
+MAX_FRAME_DIGITS = 9
 
 
 class AmcParseError(InputError):
@@ -64,7 +66,7 @@ def parse_amc(text: str, skeleton: AsfSkeleton, path: str | os.PathLike | None =
     content = [lines[i - 1].strip() for i in numbers]
     if not content:
         raise AmcParseError(path, "empty AMC file (no frames)", max(len(lines), 1))
-    is_frame = np.array([s.isdigit() for s in content])
+    is_frame = np.array([s.isascii() and s.isdigit() for s in content])
     is_header = np.array([s.startswith(":") for s in content])
     first = int(np.argmax(is_frame)) if is_frame.any() else len(content)
     late = np.flatnonzero(is_header[first:])
@@ -81,7 +83,12 @@ def parse_amc(text: str, skeleton: AsfSkeleton, path: str | os.PathLike | None =
     degrees = True if ":DEGREES" in header else False if ":RADIANS" in header else skeleton.angles_in_degrees
     body_numbers, body = numbers[first:], content[first:]
     frame_rows = is_frame[first:]
-    frame_values = np.array([int(s) for s, f in zip(body, frame_rows) if f], np.int64)
+    frame_tokens = [s for s, f in zip(body, frame_rows) if f]
+    huge = [k for k, s in enumerate(frame_tokens) if len(s.lstrip("0")) > MAX_FRAME_DIGITS]
+    if huge:
+        raise AmcParseError(path, f"frame number {frame_tokens[huge[0]][:20]} is too large (at most "
+                            f"{MAX_FRAME_DIGITS} digits)", int(body_numbers[np.flatnonzero(frame_rows)[huge[0]]]))
+    frame_values = np.array([int(s) for s in frame_tokens], np.int64)
     expected = frame_values[0] + np.arange(frame_values.size)
     bad = np.flatnonzero(frame_values != expected)
     if bad.size:

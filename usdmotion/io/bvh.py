@@ -88,7 +88,7 @@ _FRAMES_LINE = re.compile(rb"^\s*frames\s*[:=]?", re.IGNORECASE)
 _FRAME_TIME_LINE = re.compile(rb"^\s*frame\s*time", re.IGNORECASE)
 
 
-def _split_header(raw: bytes, path: str | None) -> tuple[bytes, bytes]:
+def _split_header(raw: bytes, path: str | None) -> tuple[bytes, memoryview]:
     """``(header bytes, motion-row bytes)``: rows start after the ``Frames:`` and
     ``Frame Time:`` lines (either order, blank lines allowed) that follow ``MOTION``."""
     if not raw or raw.isspace():  # no copy of a large buffer
@@ -111,7 +111,7 @@ def _split_header(raw: bytes, path: str | None) -> tuple[bytes, bytes]:
             pos = end  # keep it in the header: the header parser names this line
             break
         pos = end
-    return raw[:pos], raw[pos:]
+    return raw[:pos], memoryview(raw)[pos:]  # the rows: no copy of a large file
 
 
 def _unique_names(header: BvhHeader, path: str | None) -> tuple[str, ...]:
@@ -152,8 +152,9 @@ def parse_bvh(text: str | bytes, path: str | os.PathLike | None = None, lenient:
         raw = raw[3:]
     head, data = _split_header(raw, path)
     header = parse_header(_decode_header(head, path), path)
-    if not data.isascii():
-        start = len(head) + next(k for k, byte in enumerate(data) if byte > 127)
+    data_bytes = np.frombuffer(data, np.uint8)
+    if data_bytes.size and data_bytes.max() > 127:
+        start = len(head) + int(np.argmax(data_bytes > 127))
         try:
             raw.decode("utf-8")
         except UnicodeDecodeError as exc:
@@ -175,7 +176,7 @@ def parse_bvh(text: str | bytes, path: str | os.PathLike | None = None, lenient:
                       stacklevel=2)
     if values.size and not -MAX_ABS_VALUE <= values.min() <= values.max() <= MAX_ABS_VALUE:  # NaN propagates
         row, col = (int(i) for i in np.argwhere(~(np.abs(values) <= MAX_ABS_VALUE))[0])
-        line = line_of_row(data, row, header.data_line)
+        line = line_of_row(bytes(data), row, header.data_line)
         if not np.isfinite(values[row, col]):
             raise BvhParseError(path, f"non-finite value ({values[row, col]}) in channel {col + 1} of the motion row",
                                 line)
@@ -353,5 +354,6 @@ def read_bvh(path: str | os.PathLike, root_offset: str = "auto", units: str | fl
     except OSError as exc:
         raise BvhParseError(path, f"cannot read: {exc.strerror or exc}") from None
     data = parse_bvh(raw, path, lenient=lenient)
+    del raw  # the file's bytes are not needed once parsed (a long take's are as large as its floats)
     return motion_from_bvh(data, root_offset=root_offset, meters_per_unit=resolve_units(units), up_axis=up_axis,
                            ignore_joint_positions=ignore_joint_positions)

@@ -28,6 +28,7 @@ from usdmotion.errors import BvhParseError, UsdMotionWarning
 #: A digit: rows without one (blank, or only Unicode blanks such as U+2028, which loadtxt
 #: reads as no data, with a warning) are left to the line scan.
 _DIGIT = re.compile(rb"[0-9]")
+_CR, _LF = re.compile(rb"\r"), re.compile(rb"\n")
 
 
 @dataclass
@@ -93,12 +94,13 @@ def _is_float(text: str) -> bool:
     return True
 
 
-def parse_rows(buf: bytes, n_channels: int, first_line: int, path: str | None,
+def parse_rows(buf: bytes | memoryview, n_channels: int, first_line: int, path: str | None,
                lenient: bool = False) -> Rows:
     """Parse motion rows ``buf`` (bytes after the ``Frame Time`` line).
 
     Args:
-        buf: the motion rows, any line ends, blank lines allowed.
+        buf: the motion rows, any line ends, blank lines allowed; a memoryview of the file's
+            bytes is read as it is (no copy of a long take's rows) unless the rows are broken.
         n_channels: ``C``, values per row declared by the hierarchy.
         first_line: 1-based line number of the first byte of ``buf`` (for errors).
         lenient: drop rows with the wrong number of values (with a warning).
@@ -106,7 +108,9 @@ def parse_rows(buf: bytes, n_channels: int, first_line: int, path: str | None,
     Raises:
         BvhParseError: a row with the wrong number of values or a non-number.
     """
-    if b"\r" in buf and b"\n" not in buf:  # classic-Mac line ends
+    if isinstance(buf, memoryview) and (n_channels == 0 or (_CR.search(buf) and not _LF.search(buf))):
+        buf = bytes(buf)
+    if isinstance(buf, bytes) and b"\r" in buf and b"\n" not in buf:  # classic-Mac line ends
         buf = buf.replace(b"\r", b"\n")
     if n_channels == 0:
         lines = [line for line in buf.split(b"\n") if line.strip()]
@@ -119,7 +123,7 @@ def parse_rows(buf: bytes, n_channels: int, first_line: int, path: str | None,
     values = _fast_parse(buf, n_channels)
     if values is not None:
         return Rows(values)
-    rows = _line_scan(buf, n_channels, first_line, path, lenient)
+    rows = _line_scan(bytes(buf), n_channels, first_line, path, lenient)
     if rows.dropped:
         warnings.warn(f"{path}:{rows.first_dropped_line}: dropped {rows.dropped} motion row(s) "
                       f"without exactly {n_channels} values (--lenient)", UsdMotionWarning, stacklevel=2)

@@ -26,6 +26,18 @@ def check_convert_paths(source: str | os.PathLike, output: str | os.PathLike, me
         raise OutputError(f"{output}: --mesh needs a USD or glTF output (.usd, .usda, .usdc, .usdz, .glb, .gltf)")
 
 
+def kept_for(motion: Motion, output: str | os.PathLike) -> Motion:
+    """``motion`` less what the ``output`` format does not write: ``source_channels`` (the
+    Euler hint of a BVH write-back; an ``(F, C)`` float64 array as large as a BVH take's
+    data) for any output but BVH. A caller that drops its own reference frees it before
+    the write, whose peak memory then holds one copy of the take less."""
+    import dataclasses
+
+    if motion.source_channels is None or Path(output).suffix.lower() == ".bvh":
+        return motion
+    return dataclasses.replace(motion, source_channels=None)
+
+
 def convert_motion(motion: Motion, output: str | os.PathLike, mesh: bool = False, validate: bool = True) -> list[str]:
     """Write ``motion`` to ``output`` (format by extension, atomically); return validation problems.
 

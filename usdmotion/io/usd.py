@@ -125,6 +125,10 @@ def define_skeleton(stage, motion: Motion, root_path: str):
     binding = UsdSkel.BindingAPI.Apply(skel.GetPrim())
     binding.CreateAnimationSourceRel().SetTargets([anim.GetPath()])
 
+    weights_path = None
+    if motion.blend_shape_weights is not None:
+        anim.CreateBlendShapesAttr(Vt.TokenArray(list(motion.blend_shape_names)))
+        weights_path = anim.CreateBlendShapeWeightsAttr().GetPath()
     layer = stage.GetRootLayer()
     t_path, r_path = translations_attr.GetPath(), rotations_attr.GetPath()
     if motion.n_frames == 0:
@@ -137,6 +141,10 @@ def define_skeleton(stage, motion: Motion, root_path: str):
             for k, (t, r) in enumerate(zip(translations, rotations), start):  # one time sample per frame:
                 set_sample(t_path, float(k), vec3f(t))                          # the USD API's unit
                 set_sample(r_path, float(k), quatf(r))
+        if weights_path is not None:
+            weights = motion.blend_shape_weights.astype(np.float32)
+            for k, w in enumerate(weights):
+                set_sample(weights_path, float(k), Vt.FloatArray.FromNumpy(w))
     return skel
 
 

@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from usdmotion.errors import UsdMotionWarning, UsdReadError
-from usdmotion.io.usd_samples import animation_arrays, frame_times, stage_rate
+from usdmotion.io.usd_samples import animation_arrays, blend_shape_weights, frame_times, stage_rate
 from usdmotion.io.usd_skin import read_skinned_meshes
 from usdmotion.motion import CHANNEL_NAMES, Motion
 from usdmotion.rotations import quat_conjugate, quat_mul, quat_rotate
@@ -207,6 +207,7 @@ def read_usd_skeleton(stage, path: Path, skeleton: str | None = None, resample: 
     anim = UsdSkel.Animation(anim_query.GetPrim()) if anim_query else None
     times, step = frame_times(anim, path, resample)
     rotations, translations = animation_arrays(anim, tokens, times, rest_q, offsets, path)
+    shape_names, shape_weights = blend_shape_weights(anim, times, path)
     roots = np.flatnonzero(parents < 0)
     rotations, translations, offsets = fold_skeleton_transform(
         skeleton_world(skel, times), rotations, translations, offsets, roots, path, skel.GetPrim())
@@ -240,6 +241,8 @@ def read_usd_skeleton(stage, path: Path, skeleton: str | None = None, resample: 
         channels=channels,
         root_offset="add" if custom.get("rootOffset") == "add" else "replace",
         meshes=meshes,
+        blend_shape_names=shape_names,
+        blend_shape_weights=shape_weights,
     )
 
 

@@ -161,3 +161,42 @@ def _check_scales(anim, times: np.ndarray, n: int, path: Path) -> None:
     if worst > 1e-3:
         warnings.warn(f"{path}: {attr.GetPath()}: joint scales (up to {1 + worst:.4g}) are ignored",
                       UsdMotionWarning, stacklevel=5)
+
+
+def blend_shape_weights(anim, times: np.ndarray, path: Path) -> tuple[tuple[str, ...], np.ndarray | None]:
+    """``(names (S,), weights (max(T, 1), S) float64 or None)``: a SkelAnimation's animated
+    blend-shape weights at ``times`` (``blendShapes`` names them; ``None`` when it has none).
+    A weights array whose length is not the number of names, or non-finite, is refused."""
+    if anim is None:
+        return (), None
+    names = anim.GetBlendShapesAttr().Get()
+    attr = anim.GetBlendShapeWeightsAttr()
+    if not names or not attr.HasValue():
+        return (), None
+    where = str(attr.GetPath())
+    values = read_samples_scalar(attr, times, len(names), path, where)
+    return tuple(str(n) for n in names), values
+
+
+def read_samples_scalar(attr, times: np.ndarray, n: int, path: Path, where: str) -> np.ndarray:
+    """A float-array attribute at every time in ``times``: ``(max(T, 1), n)`` float64."""
+    from pxr import Usd
+
+    if attr.GetNumTimeSamples() == 0 or times.size == 0:
+        rows = [attr.Get()]
+        at = [None]
+    else:
+        query = Usd.AttributeQuery(attr)
+        at = times.tolist()
+        rows = [query.Get(t) for t in at]
+    out = np.empty((len(rows), n), np.float64)
+    for i, (value, t) in enumerate(zip(rows, at)):
+        when = "" if t is None else f" at time {t:g}"
+        if value is None or len(value) != n:
+            raise UsdReadError(path, f"{where}{when} has {0 if value is None else len(value)} weights for {n} "
+                                     "blend shapes")
+        out[i] = value
+    if not np.isfinite(out).all():
+        f = int(np.argwhere(~np.isfinite(out))[0][0])
+        raise UsdReadError(path, f"{where}{'' if at[f] is None else f' at time {at[f]:g}'}: a weight is not finite")
+    return np.broadcast_to(out, (max(times.size, 1), n)).copy() if len(rows) == 1 else out

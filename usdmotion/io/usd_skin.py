@@ -13,8 +13,9 @@ Write (:func:`add_skinned_meshes`): each mesh is authored under the SkelRoot, bo
 the new Skeleton, its joints found by name; the Skeleton's ``bindTransforms`` of those
 joints become the meshes' bind transforms. A mesh whose joints are missing from the
 motion or whose rest offsets changed (retarget, hierarchy edits) is left out with a
-warning: its weights would deform the wrong bones. Blend shape *targets* are kept; their
-animated weights are not (a ``Motion`` has no channel for them), which is warned about.
+warning: its weights would deform the wrong bones. Blend shape targets are kept, and their
+animated weights travel in ``Motion.blend_shape_weights`` (written back on the SkelAnimation);
+where an operation dropped those, that is warned about.
 """
 
 from __future__ import annotations
@@ -214,7 +215,7 @@ def usable_meshes(motion, source=None, blend_shape_warning: bool = True) -> list
             warnings.warn(f"{source or 'output'}: skinned mesh {mesh.name} left out: {why}, so its weights would "
                           "deform the wrong bones", UsdMotionWarning, stacklevel=3)
             continue
-        if mesh.animated_blend_shapes and blend_shape_warning:
+        if mesh.animated_blend_shapes and blend_shape_warning and motion.blend_shape_weights is None:
             warnings.warn(f"{source or 'output'}: skinned mesh {mesh.name}: its blend shapes are kept but their "
                           "animated weights are not", UsdMotionWarning, stacklevel=3)
         keep.append(mesh)

@@ -18,7 +18,7 @@ DTW_FRAMES = 600
 def _strided(motion: Motion, step: int) -> Motion:
     return motion.with_frames(motion.rotations[::step], motion.root_translation[::step],
                               None if motion.joint_translations is None else motion.joint_translations[::step],
-                              fps=motion.fps / step)
+                              fps=motion.fps / step, frame_times=np.arange(0, motion.n_frames, step))
 
 
 def dtw_frame_map(a: Motion, b: Motion) -> np.ndarray:

@@ -97,13 +97,15 @@ def animated_translation_joints(motion: Motion) -> np.ndarray:
 
 
 def rebuild(motion: Motion, rotations: np.ndarray, root_translation: np.ndarray,
-            joint_translations: np.ndarray | None, fps: float | None = None) -> Motion:
+            joint_translations: np.ndarray | None, fps: float | None = None,
+            frame_times: np.ndarray | None = None) -> Motion:
     """A new motion with new per-frame data; BVH channels gain what the data now needs.
 
     Drops the Euler hint (``source_channels``); gives the root rotation channels and
-    non-root joints position channels when the new data moves them.
+    non-root joints position channels when the new data moves them. ``frame_times``: the
+    source frames of the new frames, for per-frame data carried along (:meth:`Motion.with_frames`).
     """
-    out = motion.with_frames(rotations, root_translation, joint_translations, fps=fps)
+    out = motion.with_frames(rotations, root_translation, joint_translations, fps=fps, frame_times=frame_times)
     channels = motion.channels
     if channels is None:
         return out

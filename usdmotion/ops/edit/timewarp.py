@@ -164,7 +164,7 @@ def speed(motion: Motion, factor: float | None = None, keys=None, joint: str | N
     tau = speed_times(motion.n_frames, factor, keys)
     if joint is None:
         rotations, root, jt = sample_motion(motion, tau, interp)
-        return rebuild(motion, rotations, root, jt)
+        return rebuild(motion, rotations, root, jt, frame_times=tau)
     mask = select_joints(motion, joint, subtree)
     n = motion.n_frames
     tau = np.concatenate([tau, np.full(max(0, n - len(tau)), float(n - 1))])[:n]
@@ -185,7 +185,7 @@ def resample(motion: Motion, fps: float, interp: str = "cubic") -> Motion:
     count = int(math.floor(motion.duration * fps + 1e-6)) + 1
     tau = np.minimum(np.arange(count) * (motion.fps / fps), motion.n_frames - 1)
     rotations, root, jt = sample_motion(motion, tau, interp)
-    return rebuild(motion, rotations, root, jt, fps=fps)
+    return rebuild(motion, rotations, root, jt, fps=fps, frame_times=tau)
 
 
 def trim(motion: Motion, start: int | None = None, stop: int | None = None) -> Motion:
