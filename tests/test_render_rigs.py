@@ -23,6 +23,8 @@ from usdmotion.render import RenderOptions, plan_render, render_motion
 from usdmotion.skeleton_names import ELBOW_WORDS, KNEE_WORDS, parse_side
 from tests.test_render import is_body, project, read_image
 
+#: ``--units auto --up-axis auto``: the files stored Z up in inches (the body's own guess, stated as a warning).
+AUTO = {"units": "auto", "up_axis": "auto"}
 #: One file per rig family: (label, shared-data path, read options).
 FAMILIES = (
     ("Bandai Namco", "bandai1/dataset-1_run_normal_001.bvh", {}),
@@ -31,14 +33,14 @@ FAMILIES = (
     ("CMU 3ds Max", "cmu/max_131_01_start_walk_stop.bvh", {}),
     ("Mixamo", "other_rigs/ad_mixamo_Boxing.bvh", {}),
     ("Mixamo (mixamorig:)", "other_rigs/20tab_test_freebvh_mixamorig.bvh", {}),
-    ("ASF, no head", "other_rigs/ad_cartwheel_clean.bvh", {}),
-    ("ASF thorax/head", "other_rigs/ad_karate_mawashigeri.bvh", {"ignore_joint_positions": True}),
-    ("FAIR", "other_rigs/ad_fair1_zombie.bvh", {}),
+    ("ASF, no head", "other_rigs/ad_cartwheel_clean.bvh", AUTO),
+    ("ASF thorax/head", "other_rigs/ad_karate_mawashigeri.bvh", {**AUTO, "ignore_joint_positions": True}),
+    ("FAIR", "other_rigs/ad_fair1_zombie.bvh", AUTO),
     ("Rokoko", "other_rigs/ad_rokoko_jesse_dance.bvh", {}),
     ("OptiTrack", "other_rigs/wspr_louise_optitrack_arena.bvh", {}),
     ("bvh-toolbox", "edge_cases/bvhtoolbox_walk01.bvh", {}),
     ("MocapBank", "edge_cases/20tab_test_mocapbank_crlf.bvh", {}),
-    ("60 joints", "edge_cases/pybvh_bvh_test3_60joints_mixed_orders.bvh", {}),
+    ("60 joints", "edge_cases/pybvh_bvh_test3_60joints_mixed_orders.bvh", AUTO),
     ("6 channels/joint", "edge_cases/wspr_milad_blank_line_6ch_125fps.bvh", {}),
     ("bvhio", "edge_cases/bvhio_example.bvh", {}),
 )
@@ -52,23 +54,71 @@ def render_space(motion: Motion, positions: np.ndarray) -> np.ndarray:
     return np.stack([p[..., 0], p[..., 2], -p[..., 1]], axis=-1) if motion.up_axis == "Z" else p
 
 
-def rest_and_moving(motion: Motion) -> Motion:
-    """Two frames: the rest pose (or, when it is not upright, the frame the body is bound
-    in: Bandai's rest pose lies along +X) and the middle frame."""
+def world_frames(motion: Motion, frames=None) -> np.ndarray:
+    """Joint positions ``(F, J, 3)`` of ``frames`` (all by default), metres, Y up."""
+    frames = np.arange(motion.n_frames) if frames is None else np.asarray(frames)
+    return render_space(motion, fk_arrays(motion.rotations[frames], local_translations(motion)[frames],
+                                          motion.parents)[1])
+
+
+def standing_frames(motion: Motion) -> tuple[int | None, int | None]:
+    """``(reference, apart)`` frames of ``motion`` (None = the rest pose).
+
+    ``reference`` is the standing pose the sheet checks: the rest pose if it is upright
+    (``upright``), else the frame the renderer binds the body in (``usdmotion.skin.bind_frame``,
+    the library's own choice) if that is upright, else the most upright frame with the feet
+    apart — among the frames with the torso within 30° of up, the shins within
+    ``APART_SHIN_DEG`` of down (from FK) and the ankles at one height (within
+    ``APART_LEVEL`` body heights), the one with the largest ankle distance. ``apart`` is
+    that last frame in any case (None where there is none): the legs-apart check uses it
+    when the legs touch in the reference pose (e.g. Mixamo's T-pose)."""
     from usdmotion.skin import bind_frame
 
     mid = motion.n_frames // 2
     rest_world = render_space(motion, fk_arrays(np.tile([1.0, 0, 0, 0], (motion.n_joints, 1)),
                                                 local_translations(motion)[mid], motion.parents)[1])
-    bind = None if upright(motion, rest_world) else bind_frame(motion)
-    if bind is None:
-        rest = np.zeros((motion.n_joints, 4))
-        rest[:, 0] = 1.0
-    else:
-        rest = motion.rotations[bind]
-    rotations = np.stack([rest, motion.rotations[mid]])
-    root = np.stack([motion.root_translation[mid if bind is None else bind], motion.root_translation[mid]])
-    joint_t = None if motion.joint_translations is None else motion.joint_translations[[mid, mid]]
+    world = world_frames(motion)
+    wide = upright_frames(motion, world, shin_deg=APART_SHIN_DEG)
+    leg = legs(motion)
+    apart = None
+    if wide.any() and set(leg) == {"left", "right"}:
+        step = world[:, leg["left"][1]] - world[:, leg["right"][1]]
+        level = np.abs(step[:, 1]) < APART_LEVEL * np.ptp(world[:, :, 1], axis=1)  # both feet down
+        ankles = np.linalg.norm(step, axis=1)
+        if (wide & level).any():
+            apart = int(np.argmax(np.where(wide & level, ankles, -np.inf)))
+    if upright(motion, rest_world):
+        return None, apart
+    bind = bind_frame(motion)
+    if bind is not None and upright(motion, world[bind]):
+        return bind, apart
+    return (apart if apart is not None else bind), apart
+
+
+#: Shins within this of straight down in the feet-apart frame (a boxing or fighting stance
+#: spreads them wider than the 30° of a standing pose).
+APART_SHIN_DEG = 55.0
+#: Both feet down in the feet-apart frame: ankle heights within this many body heights.
+APART_LEVEL = 0.05
+#: The feet-apart frame stands in for a reference pose with touching legs only with the
+#: ankles at least this far apart (metres).
+APART_ANKLES_M = 0.25
+
+
+def rest_and_moving(motion: Motion) -> Motion:
+    """Three frames: the standing reference (``standing_frames``: the rest pose, the bind
+    frame or the most upright frame with the feet apart), the middle frame, and the most
+    upright frame with the feet apart (the reference again where there is none)."""
+    mid = motion.n_frames // 2
+    reference, apart = standing_frames(motion)
+    apart = reference if apart is None else apart
+    identity = np.zeros((motion.n_joints, 4))
+    identity[:, 0] = 1.0
+    pose = lambda f: identity if f is None else motion.rotations[f]
+    rotations = np.stack([pose(reference), motion.rotations[mid], pose(apart)])
+    root = motion.root_translation[[mid if f is None else f for f in (reference, mid, apart)]]
+    joint_t = None if motion.joint_translations is None else motion.joint_translations[
+        [mid if f is None else f for f in (reference, mid, apart)]]
     return motion.with_frames(rotations, root, joint_t, fps=1.0)
 
 
@@ -90,14 +140,25 @@ def shoulders(motion: Motion) -> list[int]:
             if parse_side(name)[0] and parse_side(name)[1] in ELBOW_WORDS and not motion.end_sites[j]]
 
 
-def upright(motion: Motion, world: np.ndarray, legs_too: bool = True) -> bool:
-    """Standing: the shoulders' midpoint above the root within 30° of straight up and
-    (``legs_too``) the shin axes (knee → ankle) within 30° of straight down (render
-    space ``world (J, 3)``)."""
-    down = [world[a] - world[k] for k, a in legs(motion).values()] if legs_too else []
-    up = [np.mean(world[shoulders(motion)], axis=0) - world[0]] if len(shoulders(motion)) == 2 else []
-    cos = [-d[1] / np.linalg.norm(d) for d in down] + [u[1] / np.linalg.norm(u) for u in up]
-    return len(cos) == (3 if legs_too else 1) and min(cos) > np.cos(np.radians(30))
+def upright_frames(motion: Motion, world: np.ndarray, legs_too: bool = True, shin_deg: float = 30.0) -> np.ndarray:
+    """Standing, per frame ``(F,)``: the shoulders' midpoint above the root within 30° of
+    straight up and (``legs_too``) the shin axes (knee → ankle) within ``shin_deg`` of
+    straight down (render space ``world (F, J, 3)``). False throughout without two
+    shoulders (and knees)."""
+    arms, leg = shoulders(motion), legs(motion)
+    if len(arms) != 2 or (legs_too and set(leg) != {"left", "right"}):
+        return np.zeros(len(world), bool)
+    up = np.mean(world[:, arms], axis=1) - world[:, 0]
+    ok = up[:, 1] / np.linalg.norm(up, axis=1) > np.cos(np.radians(30))
+    for k, a in (leg.values() if legs_too else ()):
+        down = world[:, a] - world[:, k]
+        ok &= -down[:, 1] / np.linalg.norm(down, axis=1) > np.cos(np.radians(shin_deg))
+    return ok
+
+
+def upright(motion: Motion, world: np.ndarray, legs_too: bool = True, shin_deg: float = 30.0) -> bool:
+    """``upright_frames`` of one pose ``world (J, 3)``."""
+    return bool(upright_frames(motion, world[None], legs_too, shin_deg)[0])
 
 
 @pytest.fixture(scope="module")
@@ -116,7 +177,7 @@ def sheet(tmp_path_factory):
         two = rest_and_moving(motion)
         options = dataclasses.replace(OPTIONS, camera=across_the_legs(two, folder / f"{k}.usda"))
         render_motion(two, folder / f"{k}/####.png", options)
-        images = np.stack([read_image(folder / f"{k}/{i:04d}.png") for i in range(2)])
+        images = np.stack([read_image(folder / f"{k}/{i:04d}.png") for i in range(two.n_frames)])
         plan = plan_render(two, options)
         out[label] = (motion, two, images, plan.camera.poses, plan.camera.yfov)
     if not out:
@@ -134,8 +195,8 @@ def sheet(tmp_path_factory):
 
 
 def across_the_legs(two: Motion, path) -> str:
-    """A USD camera (Y up, metres, 24 time codes/s) that looks at each of the two frames
-    (at 0 s and 1 s) across the line between the knees, so the legs stand apart in the
+    """A USD camera (Y up, metres, 24 time codes/s) that looks at each frame of ``two``
+    (at 0 s, 1 s, ...) across the line between the knees, so the legs stand apart in the
     picture; from the front (+Z) when the rig has no knees by name."""
     from pxr import Gf, Usd, UsdGeom
 
@@ -149,7 +210,7 @@ def across_the_legs(two: Motion, path) -> str:
     op = cam.AddTransformOp()
     leg = legs(two)
     world = render_space(two, fk_arrays(two.rotations, local_translations(two), two.parents)[1])
-    for frame in range(2):
+    for frame in range(two.n_frames):
         joints = world[frame]
         across = np.array([1.0, 0.0, 0.0])
         if set(leg) == {"left", "right"}:
@@ -172,7 +233,7 @@ def contact_sheet(renders: dict, columns: int = 4) -> np.ndarray:
 
     tiles = []
     for label, (_, _, images, _, _) in renders.items():
-        pair = np.ascontiguousarray(np.hstack(images))
+        pair = np.ascontiguousarray(np.hstack(images[:2]))  # reference | moving
         draw_text(pair, [label])
         tiles.append(pair)
     while len(tiles) % columns:
@@ -187,27 +248,36 @@ def joints_px(two: Motion, frame: int, poses, yfov) -> np.ndarray:
 
 @pytest.mark.parametrize("label", [f[0] for f in FAMILIES])
 def test_rest_pose_has_no_webbing_between_the_legs_below_the_knees(sheet, label):
+    """In the standing reference pose (``standing_frames``: the rest pose, else the bind
+    frame, else the most upright frame with the feet apart), or, where the legs touch in it
+    (shins less than 0.1 body sizes apart all the way down), in the most upright frame with
+    the feet apart (``APART_ANKLES_M`` at least): body pixels on both shins, none on the
+    line midway between them."""
     if label not in sheet:
         pytest.skip(f"{label}: file not in the shared corpus")
     motion, two, images, poses, yfov = sheet[label]
     leg = legs(motion)
     if set(leg) != {"left", "right"}:
         pytest.skip(f"{label}: no left and right knee by name")
-    world = render_space(two, fk_arrays(two.rotations[[0]], local_translations(two)[[0]], two.parents)[1][0])
-    if not upright(two, world):
-        pytest.skip(f"{label}: neither the rest pose nor the bind frame is standing")
-    size = float(np.ptp(world, axis=0).max())
-    t = np.linspace(0.25, 0.9, 8)[:, None]
-    axis = {s: world[k] + t * (world[a] - world[k]) for s, (k, a) in leg.items()}
-    apart = np.linalg.norm(axis["left"] - axis["right"], axis=1) > 0.1 * size  # legs clearly apart
-    if not apart.any():
-        pytest.skip(f"{label}: the legs touch in the rest pose")
-    between = project(0.5 * (axis["left"] + axis["right"])[apart], poses[0], yfov, SIZE, SIZE)
-    on_legs = project(np.concatenate([axis["left"][apart], axis["right"][apart]]), poses[0], yfov, SIZE, SIZE)
-    body = is_body(images[0])
+    for frame, shin_deg in ((0, 30.0), (2, APART_SHIN_DEG)):
+        world = world_frames(two, [frame])[0]
+        if not upright(two, world, shin_deg=shin_deg):
+            continue
+        size = float(np.ptp(world, axis=0).max())
+        t = np.linspace(0.25, 0.9, 8)[:, None]
+        axis = {s: world[k] + t * (world[a] - world[k]) for s, (k, a) in leg.items()}
+        apart = np.linalg.norm(axis["left"] - axis["right"], axis=1) > 0.1 * size  # legs clearly apart
+        ankles = np.linalg.norm(world[leg["left"][1]] - world[leg["right"][1]])
+        if apart.any() and (frame == 0 or ankles >= APART_ANKLES_M):
+            break
+    else:
+        pytest.skip(f"{label}: in no frame (rest, bind, or of the take) both standing and with the legs apart")
+    between = project(0.5 * (axis["left"] + axis["right"])[apart], poses[frame], yfov, SIZE, SIZE)
+    on_legs = project(np.concatenate([axis["left"][apart], axis["right"][apart]]), poses[frame], yfov, SIZE, SIZE)
+    body = is_body(images[frame])
     pick = lambda px: body[np.clip(px[:, 1].astype(int), 0, SIZE - 1), np.clip(px[:, 0].astype(int), 0, SIZE - 1)]
-    assert pick(on_legs).mean() > 0.9, f"{label}: the legs themselves are not drawn"
-    assert not pick(between).any(), f"{label}: body pixels between the legs below the knees"
+    assert pick(on_legs).mean() > 0.9, f"{label} (frame {frame}): the legs themselves are not drawn"
+    assert not pick(between).any(), f"{label} (frame {frame}): body pixels between the legs below the knees"
 
 
 @pytest.mark.parametrize("label", [f[0] for f in FAMILIES])
