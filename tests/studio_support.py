@@ -40,10 +40,17 @@ def make_library(folder: Path) -> Path:
 @contextlib.contextmanager
 def running_studio(roots: list[Path], units: str | None = "asf", out: Path | None = None):
     """Serve the studio on 127.0.0.1 and a free port; yields the base URL; always stops it."""
+    from usdmotion.studio.app import create_app
+
+    with serving(create_app(roots, {"units": units}, out)) as base:
+        yield base
+
+
+@contextlib.contextmanager
+def serving(app):
+    """Serve ``app`` (uvicorn) on 127.0.0.1 and a free port; yields the base URL; always stops it."""
     import uvicorn
 
-    from usdmotion.studio.app import create_app
-    app = create_app(roots, {"units": units}, out)
     sock = socket.socket()
     sock.bind(("127.0.0.1", 0))
     server = uvicorn.Server(uvicorn.Config(app, log_level="warning"))
