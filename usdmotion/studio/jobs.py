@@ -226,6 +226,32 @@ def output_path(out: Path, source: str, suffix: str, ext: str, taken=frozenset()
     raise AssertionError("unreachable")
 
 
+def library_name(library, out: Path | None, entry) -> str:
+    """``"<root name>/<relative path>"`` of a take for :func:`output_path`; a take already in the
+    output folder keeps its place there (an edit of an edit is written beside it)."""
+    index, _, rel = entry.id.partition("/")
+    root = library.roots[int(index)]
+    if out is not None and root == Path(out).resolve():
+        return rel
+    return f"{(root.parent if root.is_file() else root).name}/{rel}"
+
+
+async def json_body(request, max_bytes: int = 64 * 1024) -> dict:
+    """The request's JSON object (400 with one line if it is not one)."""
+    import json
+
+    data = await request.body()
+    if len(data) > max_bytes:
+        raise StudioError(413, "request too large")
+    try:
+        body = json.loads(data or b"{}")
+    except (ValueError, UnicodeDecodeError):
+        raise StudioError(400, "the request body is not JSON") from None
+    if not isinstance(body, dict):
+        raise StudioError(400, "the request body must be a JSON object")
+    return body
+
+
 def routes(jobs: Jobs) -> list:
     """``GET /api/jobs``, ``GET /api/jobs/{id}``, ``DELETE /api/jobs/{id}``."""
     from starlette.requests import Request
