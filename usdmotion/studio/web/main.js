@@ -4,6 +4,7 @@ import {getJSON, loadTake} from './api.js';
 import {LibraryView} from './library.js';
 import {Player} from './player.js';
 import {Plots} from './plots.js';
+import {mountEdits} from './edits.js';
 
 const $ = id => document.getElementById(id);
 const params = new URLSearchParams(location.search);
@@ -61,6 +62,11 @@ player.onOrbit = () => { player.cameraMode = 'orbit'; $('camera').value = 'orbit
 player.onCamera = () => { clearTimeout(player.urlTimer); player.urlTimer = setTimeout(writeUrl, 300); };
 const plots = new Plots($('plots'), t => player.setFrame(Math.round(t * player.fps)));
 const library = new LibraryView($('takes'), $('filter'), $('library-status'), id => openTake(id, true));
+// the tool panels (edits, retarget, video) see the page through these few hooks
+const tools = {player, plots, take: () => take, state, reopen: () => openTake(state.take, false),
+  plotQuery: () => ({joints: state.joints.join(','), q: state.q.join(',')}),
+  refreshLibrary: async () => { await library.load(); await library.fill(); fillTakeLists(); }};
+const edits = mountEdits(tools);
 
 async function openTake(id, fresh) {
   player.openedAt = performance.now();
@@ -96,6 +102,7 @@ async function openTake(id, fresh) {
   $('camera').value = state.cam;
   fillJoints();
   player.setFrame(state.frame);
+  edits.opened(take);
   takeShown();
   $('view-message').textContent = 'body: loading…';
   await Promise.all([loadSeries(), take.comLoaded.then(applyTrace),
@@ -269,6 +276,13 @@ function wire() {
   $('align-mode').value = state.align; $('offset').value = state.offset; $('align-space').value = state.space;
 }
 
+function fillTakeLists() {
+  const options = library.readable().map(t => new Option(t.name, t.id));
+  $('compare').replaceChildren(new Option('—', ''), ...options.map(o => o.cloneNode(true)));
+  $('compare').value = state.compare;
+  edits.libraryFilled(options);
+}
+
 async function start() {
   wire();
   await library.load();  // the list of takes, at once
@@ -276,9 +290,7 @@ async function start() {
   player.warmUp();  // while the take's arrays are on their way
   if (opening) await Promise.race([shown, opening]);  // a linked take is drawn before the library is read
   await library.fill();
-  const options = library.readable().map(t => new Option(t.name, t.id));
-  $('compare').replaceChildren(new Option('—', ''), ...options);
-  $('compare').value = state.compare;
+  fillTakeLists();
   await opening;
   document.body.dataset.loaded = '1';
 }
