@@ -5,6 +5,7 @@ import {LibraryView} from './library.js';
 import {Player} from './player.js';
 import {Plots} from './plots.js';
 import {mountEdits} from './edits.js';
+import {mountRetarget} from './retarget.js';
 
 const $ = id => document.getElementById(id);
 const params = new URLSearchParams(location.search);
@@ -66,7 +67,7 @@ const library = new LibraryView($('takes'), $('filter'), $('library-status'), id
 const tools = {player, plots, take: () => take, state, reopen: () => openTake(state.take, false),
   plotQuery: () => ({joints: state.joints.join(','), q: state.q.join(',')}),
   refreshLibrary: async () => { await library.load(); await library.fill(); fillTakeLists(); }};
-const edits = mountEdits(tools);
+const edits = mountEdits(tools), retargeting = mountRetarget(tools);
 
 async function openTake(id, fresh) {
   player.openedAt = performance.now();
@@ -103,6 +104,7 @@ async function openTake(id, fresh) {
   fillJoints();
   player.setFrame(state.frame);
   edits.opened(take);
+  retargeting.opened(take);
   takeShown();
   $('view-message').textContent = 'body: loading…';
   await Promise.all([loadSeries(), take.comLoaded.then(applyTrace),
@@ -281,6 +283,7 @@ function fillTakeLists() {
   $('compare').replaceChildren(new Option('—', ''), ...options.map(o => o.cloneNode(true)));
   $('compare').value = state.compare;
   edits.libraryFilled(options);
+  retargeting.libraryFilled(options);
 }
 
 async function start() {
