@@ -6,6 +6,7 @@ import {Player} from './player.js';
 import {Plots} from './plots.js';
 import {mountEdits} from './edits.js';
 import {mountRetarget} from './retarget.js';
+import {mountVideo} from './video.js';
 
 const $ = id => document.getElementById(id);
 const params = new URLSearchParams(location.search);
@@ -68,6 +69,7 @@ const tools = {player, plots, take: () => take, state, reopen: () => openTake(st
   plotQuery: () => ({joints: state.joints.join(','), q: state.q.join(',')}),
   refreshLibrary: async () => { await library.load(); await library.fill(); fillTakeLists(); }};
 const edits = mountEdits(tools), retargeting = mountRetarget(tools);
+mountVideo(tools);
 
 async function openTake(id, fresh) {
   player.openedAt = performance.now();
