@@ -97,3 +97,31 @@ def test_bad_edit_parameters_show_one_line_and_the_server_keeps_running(studio, 
     assert text.startswith(message) and "\n" not in text
     # the server still answers and the original still plays
     assert page.evaluate("async () => (await fetch('/api/takes')).status") == 200
+
+
+def test_an_unwritable_output_folder_shows_one_line_and_writes_nothing(tmp_path, browser):  # noqa: F811
+    """The output folder's place for this library is taken by a file: Save as cannot create its
+    folder. The page shows one line; the server keeps running; nothing is written."""
+    lib = make_library(tmp_path)
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "lib").write_text("a file where the studio wants a folder")
+    with running_studio([lib], out=out) as base:
+        context = browser.new_context(viewport={"width": 1400, "height": 900})
+        try:
+            page = context.new_page()
+            open_view(page, base, f"take={WALK_ID}")
+            page.click("#edit-panel summary")
+            page.fill("#trim-start", "10")
+            page.dispatch_event("#trim-start", "change")
+            page.wait_for_selector("#edit-panel[data-state=preview]", timeout=60_000)
+            page.click("#edit-save")
+            page.wait_for_selector("#edit-save-bar .job-bar[data-state=failed]", timeout=30_000)
+            text = page.inner_text("#edit-save-bar .job-message")
+            assert text.startswith("cannot write in the output folder ") and text.endswith(": File exists")
+            assert "\n" not in text
+            assert page.evaluate("async () => (await fetch('/api/takes')).status") == 200
+        finally:
+            context.close()
+    assert sorted(p.name for p in out.iterdir()) == ["cache", "lib"]
+    assert (out / "lib").read_text() == "a file where the studio wants a folder"
