@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from studio_support import make_library, running_studio
+from studio_support import make_library, running_studio, shoot
 from test_studio_browser import ARGS, CHROMIUM, SHOTS, WALK_ID, browser, open_view, page  # noqa: F401 - fixtures
 from usdmotion.io import read_motion
 from usdmotion.kinematics import joint_positions
@@ -43,8 +43,8 @@ def test_equaliser_slider_changes_only_the_chosen_limb(studio, page):
     open_view(page, base, f"take={WALK_ID}")
     page.click("#edit-panel summary")
     page.select_option("#eq-group", "LeftUpLeg")
-    slider = page.locator("#eq-bands input[data-band='2']")
-    slider.fill("2.5")  # a user dragging band 2 to 2.5x (input + change)
+    slider = page.locator("#eq-bands input[data-band='4']")
+    slider.fill("3")  # a user dragging band 4 (about 2.7 Hz at 120 fps) to 3x (input + change)
     page.wait_for_selector("#edit-panel[data-state=preview]", timeout=60_000)
     edited, original = page_positions(page, "figure"), page_positions(page, "ghost")
     walk = read_motion(lib / "walk.bvh", units="asf")
@@ -57,14 +57,13 @@ def test_equaliser_slider_changes_only_the_chosen_limb(studio, page):
     assert moved > 0.005  # metres
     n_bands = page.locator("#eq-bands input").count()
     gains = [1.0] * n_bands
-    gains[2] = 2.5
+    gains[4] = 3.0
     expected = joint_positions(equalize(walk, gains=gains, joint="LeftUpLeg", subtree=True)) * walk.meters_per_unit
     np.testing.assert_allclose(edited, expected, atol=1e-5)
     # the plots show both takes: edited solid, original dashed
     labels = page.evaluate("() => [...document.querySelectorAll('#plots .u-legend .u-label')].map(e => e.textContent)")
     assert any("(compare)" in label for label in labels)
-    SHOTS.mkdir(parents=True, exist_ok=True)
-    page.screenshot(path=SHOTS / "edits.png")
+    shoot(page, "edits.png", frame=200)
 
     # Save as: a new file in the output folder, listed in the library; the original untouched
     before = (lib / "walk.bvh").read_bytes()

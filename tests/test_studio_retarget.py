@@ -10,7 +10,7 @@ import json
 import numpy as np
 import pytest
 
-from studio_support import make_library, running_studio
+from studio_support import make_library, running_studio, shoot
 from test_studio_browser import ARGS, CHROMIUM, SHOTS, WALK_ID, browser, open_view, page  # noqa: F401 - fixtures
 from usdmotion.io import read_motion, write_motion
 
@@ -58,8 +58,7 @@ def test_retarget_in_the_browser_matches_the_cli(studio, page, tmp_path):
     assert page.evaluate("() => window.studio.player.figure.take.end_sites.filter(e => !e).length") == 18
     assert page.evaluate("() => window.studio.player.ghost.take.id") == WALK_ID
     table = [row.split("\t") for row in page.locator("#rt-errors tbody tr").all_inner_texts()]
-    SHOTS.mkdir(parents=True, exist_ok=True)
-    page.screenshot(path=SHOTS / "retarget.png")
+    shoot(page, "retarget.png", frame=200)
     page.select_option("#rt-format", "usda")
     page.click("#rt-save")
     page.wait_for_selector("#rt-save-bar .job-bar[data-state=done]", timeout=60_000)

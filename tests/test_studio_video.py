@@ -9,7 +9,7 @@ import math
 
 import pytest
 
-from studio_support import make_library, running_studio
+from studio_support import make_library, running_studio, shoot
 from test_studio_browser import ARGS, CHROMIUM, SHOTS, TURNED_ID, WALK_ID, browser, open_view, page  # noqa: F401
 
 pytestmark = pytest.mark.skipif(not __import__("pathlib").Path(CHROMIUM).exists(),
@@ -58,8 +58,7 @@ def test_render_the_view_to_mp4_and_download_it(studio, page):
     for bad in ("../lib/walk.bvh", "lib/walk.video.mp4/../../../lib/walk.bvh", "/etc/passwd", "cache"):
         status = page.evaluate("async u => (await fetch(u)).status", f"/api/video/file?name={bad}")
         assert status == 404
-    SHOTS.mkdir(parents=True, exist_ok=True)
-    page.screenshot(path=SHOTS / "video.png")
+    shoot(page, "video.png", frame=200)
 
 
 def test_cancel_a_render_from_the_page_leaves_no_file(studio, page):
