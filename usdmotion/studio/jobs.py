@@ -219,11 +219,12 @@ def output_path(out: Path, source: str, suffix: str, ext: str, taken=frozenset()
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise StudioError(507, f"cannot write in the output folder {out}: {exc.strerror or exc}") from None
-    for n in itertools.count(1):
-        path = folder / f"{stem}.{suffix}{'' if n == 1 else f'-{n}'}.{ext}"
-        if not path.exists() and path.resolve() not in taken:
-            return path
-    raise AssertionError("unreachable")
+    n = 1
+    path = folder / f"{stem}.{suffix}.{ext}"
+    while path.exists() or path.resolve() in taken:
+        n += 1
+        path = folder / f"{stem}.{suffix}-{n}.{ext}"
+    return path
 
 
 def library_name(library, out: Path | None, entry) -> str:
