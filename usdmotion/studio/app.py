@@ -18,6 +18,7 @@ from starlette.routing import Mount, Route
 from starlette.staticfiles import StaticFiles
 
 from usdmotion.studio import compare, takes
+from usdmotion.studio.errors import StudioError
 from usdmotion.studio.library import Entry, Library, error_line, read_options
 
 WEB = Path(__file__).with_name("web")
@@ -26,14 +27,6 @@ NODE_MODULES = WEB / "node_modules"
 MAX_BODY_BYTES = 64 * 1024
 #: Most ids in one metadata request, joints in one series request.
 MAX_IDS = 200
-
-
-class StudioError(Exception):
-    """An answer other than 200: ``status`` and a one-line message."""
-
-    def __init__(self, status: int, message: str) -> None:
-        super().__init__(message)
-        self.status = status
 
 
 def missing_web_packages() -> list[str]:

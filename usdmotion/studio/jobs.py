@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 
 from usdmotion.progress import Progress
-from usdmotion.studio.app import StudioError
+from usdmotion.studio.errors import StudioError
 
 #: Jobs running at once (more wait, ``queued``); finished jobs kept for the page to read.
 MAX_RUNNING = 2

@@ -21,7 +21,7 @@ from starlette.responses import JSONResponse, Response
 from starlette.routing import Route
 
 from usdmotion.studio import takes
-from usdmotion.studio.app import StudioApi, StudioError
+from usdmotion.studio.errors import StudioError
 from usdmotion.studio.edit_panel import saved
 from usdmotion.studio.jobs import error_text, json_body, library_name
 
@@ -33,7 +33,7 @@ CHOICES = {"method": ("lm", "adam"), "lengths": ("source", "target"), "init": ("
 
 
 class RetargetPanel:
-    def __init__(self, api: StudioApi) -> None:
+    def __init__(self, api) -> None:
         self.api = api
         self._results: OrderedDict[str, object] = OrderedDict()
         self._lock = threading.Lock()
@@ -174,5 +174,7 @@ class RetargetPanel:
         return JSONResponse({"job": job.id, "output": jobs.shown(path)})
 
 
-def routes(api: StudioApi) -> list[Route]:
+def routes(api) -> list[Route]:
+    """The retarget panel's routes over ``api``, the app's :class:`usdmotion.studio.app.StudioApi`
+    (library, take cache, reading options, output folder, ``jobs``)."""
     return RetargetPanel(api).routes()

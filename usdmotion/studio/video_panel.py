@@ -16,7 +16,7 @@ from starlette.requests import Request
 from starlette.responses import FileResponse, JSONResponse, Response
 from starlette.routing import Route
 
-from usdmotion.studio.app import StudioApi, StudioError
+from usdmotion.studio.errors import StudioError
 from usdmotion.studio.edit_panel import saved
 from usdmotion.studio.jobs import json_body, library_name
 
@@ -64,7 +64,7 @@ def render_options(body: dict, motion, other) -> tuple:
 
 
 class VideoPanel:
-    def __init__(self, api: StudioApi) -> None:
+    def __init__(self, api) -> None:
         self.api = api
 
     def routes(self) -> list[Route]:
@@ -113,5 +113,7 @@ class VideoPanel:
         return FileResponse(path, media_type="video/mp4", filename=path.name)
 
 
-def routes(api: StudioApi) -> list[Route]:
+def routes(api) -> list[Route]:
+    """The feedback-video panel's routes over ``api``, the app's :class:`usdmotion.studio.app.StudioApi`
+    (library, take cache, reading options, output folder, ``jobs``)."""
     return VideoPanel(api).routes()
