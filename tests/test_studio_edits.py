@@ -5,28 +5,24 @@ parameters show the CLI's one line in the page while the server keeps running.""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
-from studio_support import make_library, running_studio, shoot
-from test_studio_browser import ARGS, CHROMIUM, SHOTS, WALK_ID, browser, open_view, page  # noqa: F401 - fixtures
+from studio_support import make_library, running_studio, shoot, studio_with_output
+from test_studio_browser import CHROMIUM, WALK_ID, browser, open_view, page  # noqa: F401 - fixtures
 from usdmotion.io import read_motion
 from usdmotion.kinematics import joint_positions
 
-pytestmark = pytest.mark.skipif(not CHROMIUM or not __import__("pathlib").Path(CHROMIUM).exists(),
+pytestmark = pytest.mark.skipif(not Path(CHROMIUM).exists(),
                                 reason="Debian's chromium is not installed (scripts/setup.sh installs it)")
 
 
 @pytest.fixture(scope="module")
 def studio(tmp_path_factory):
-    from usdmotion.studio.app import missing_web_packages
-
-    if missing_web_packages():
-        pytest.skip(f"studio web packages missing ({missing_web_packages()}): run scripts/setup.sh")
-    folder = tmp_path_factory.mktemp("edits")
-    lib = make_library(folder)
-    with running_studio([lib], out=folder / "out") as base:
-        yield base, lib, folder / "out"
+    with studio_with_output(tmp_path_factory.mktemp("edits")) as served:
+        yield served
 
 
 def page_positions(page, which: str) -> np.ndarray:

@@ -7,14 +7,16 @@ from __future__ import annotations
 
 import json
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
-from studio_support import make_library, running_studio, shoot
-from test_studio_browser import ARGS, CHROMIUM, SHOTS, WALK_ID, browser, open_view, page  # noqa: F401 - fixtures
+from studio_support import shoot, studio_with_output
+from test_studio_browser import CHROMIUM, WALK_ID, browser, open_view, page  # noqa: F401 - fixtures
 from usdmotion.io import read_motion, write_motion
 
-pytestmark = pytest.mark.skipif(not __import__("pathlib").Path(CHROMIUM).exists(),
+pytestmark = pytest.mark.skipif(not Path(CHROMIUM).exists(),
                                 reason="Debian's chromium is not installed (scripts/setup.sh installs it)")
 
 #: The 18-joint rig of docs/retarget.md's example: the walk's skeleton without these joints.
@@ -22,21 +24,19 @@ REMOVE = "LHipJoint,RHipJoint,LowerBack,Spine1,Neck,LeftShoulder,RightShoulder,L
          "LeftHandIndex1,RightHandIndex1,LThumb,RThumb"
 
 
-@pytest.fixture(scope="module")
-def studio(tmp_path_factory):
-    from usdmotion.studio.app import missing_web_packages
-
-    if missing_web_packages():
-        pytest.skip(f"studio web packages missing ({missing_web_packages()}): run scripts/setup.sh")
-    folder = tmp_path_factory.mktemp("retarget")
-    lib = make_library(folder)
-    # a rig no joint of the walk maps to (names with nothing in common, no profile)
-    walk = read_motion(lib / "walk.bvh", units="asf")
+def add_alien_rig(lib) -> None:
+    """A rig no joint of the walk maps to (names with nothing in common, no rig profile)."""
     import dataclasses
+
+    walk = read_motion(lib / "walk.bvh", units="asf")
     alien = dataclasses.replace(walk, joint_names=tuple(f"Bone{j:02d}" for j in range(walk.n_joints)))
     write_motion(alien.sliced(0, 2), lib / "alien_rig.bvh")
-    with running_studio([lib], out=folder / "out") as base:
-        yield base, lib, folder / "out"
+
+
+@pytest.fixture(scope="module")
+def studio(tmp_path_factory):
+    with studio_with_output(tmp_path_factory.mktemp("retarget"), add_alien_rig) as served:
+        yield served
 
 
 def test_retarget_in_the_browser_matches_the_cli(studio, page, tmp_path):

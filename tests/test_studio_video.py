@@ -6,26 +6,21 @@ from __future__ import annotations
 
 import io
 import math
+from pathlib import Path
 
 import pytest
 
-from studio_support import make_library, running_studio, shoot
-from test_studio_browser import ARGS, CHROMIUM, SHOTS, TURNED_ID, WALK_ID, browser, open_view, page  # noqa: F401
+from studio_support import shoot, studio_with_output
+from test_studio_browser import CHROMIUM, TURNED_ID, WALK_ID, browser, open_view, page  # noqa: F401
 
-pytestmark = pytest.mark.skipif(not __import__("pathlib").Path(CHROMIUM).exists(),
+pytestmark = pytest.mark.skipif(not Path(CHROMIUM).exists(),
                                 reason="Debian's chromium is not installed (scripts/setup.sh installs it)")
 
 
 @pytest.fixture(scope="module")
 def studio(tmp_path_factory):
-    from usdmotion.studio.app import missing_web_packages
-
-    if missing_web_packages():
-        pytest.skip(f"studio web packages missing ({missing_web_packages()}): run scripts/setup.sh")
-    folder = tmp_path_factory.mktemp("video")
-    lib = make_library(folder)
-    with running_studio([lib], out=folder / "out") as base:
-        yield base, lib, folder / "out"
+    with studio_with_output(tmp_path_factory.mktemp("video")) as served:
+        yield served
 
 
 def test_render_the_view_to_mp4_and_download_it(studio, page):

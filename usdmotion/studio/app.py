@@ -91,12 +91,7 @@ class StudioApi:
 
     def series(self, request: Request) -> Response:
         kin = self.compute(self.take(request), "analysis", takes.analysis)
-        joints = [j for j in request.query_params.get("joints", "").split(",") if j][:MAX_IDS]
-        quantities = [q for q in request.query_params.get("q", "bend,speed,com_height,com_speed").split(",") if q]
-        bad = [j for j in joints if j not in kin.joint_names] + [q for q in quantities if q not in takes.QUANTITIES]
-        if bad:
-            raise StudioError(400, f"unknown joint or quantity {bad[0]!r}")
-        return JSONResponse(takes.series(kin, joints, quantities))
+        return JSONResponse(takes.series_query(kin, request.query_params, MAX_IDS))
 
     def glb(self, request: Request) -> Response:
         from usdmotion.io.gltf import glb_bytes

@@ -227,6 +227,30 @@ def output_path(out: Path, source: str, suffix: str, ext: str, taken=frozenset()
     return path
 
 
+class Kept:
+    """The last ``size`` results a panel computed (edited motions, retarget results), by key,
+    for the page's follow-up requests; a key no longer kept is a 404 with ``missing``."""
+
+    def __init__(self, size: int, missing: str) -> None:
+        self.size, self.missing = size, missing
+        self._items: OrderedDict[str, object] = OrderedDict()
+        self._lock = threading.Lock()
+
+    def put(self, key: str, value) -> None:
+        with self._lock:
+            self._items[key] = value
+            self._items.move_to_end(key)
+            while len(self._items) > self.size:
+                self._items.popitem(last=False)
+
+    def get(self, key: str):
+        with self._lock:
+            found = self._items.get(key)
+        if found is None:
+            raise StudioError(404, self.missing)
+        return found
+
+
 def library_name(library, out: Path | None, entry) -> str:
     """``"<root name>/<relative path>"`` of a take for :func:`output_path`; a take already in the
     output folder keeps its place there (an edit of an edit is written beside it)."""

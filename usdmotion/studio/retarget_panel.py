@@ -12,9 +12,6 @@ SOURCE OUT --target TARGET`` writes with the same options.
 
 from __future__ import annotations
 
-import threading
-from collections import OrderedDict
-
 from starlette.concurrency import run_in_threadpool
 from starlette.requests import Request
 from starlette.responses import JSONResponse, Response
@@ -23,7 +20,7 @@ from starlette.routing import Route
 from usdmotion.studio import takes
 from usdmotion.studio.errors import StudioError
 from usdmotion.studio.edit_panel import saved
-from usdmotion.studio.jobs import error_text, json_body, library_name
+from usdmotion.studio.jobs import Kept, error_text, json_body, library_name
 
 #: Retarget results kept for playing and saving.
 KEEP_RESULTS = 4
@@ -35,8 +32,7 @@ CHOICES = {"method": ("lm", "adam"), "lengths": ("source", "target"), "init": ("
 class RetargetPanel:
     def __init__(self, api) -> None:
         self.api = api
-        self._results: OrderedDict[str, object] = OrderedDict()
-        self._lock = threading.Lock()
+        self._results = Kept(KEEP_RESULTS, "this retarget result is no longer kept: run it again")
 
     def routes(self) -> list[Route]:
         return [Route("/api/retarget/map", self.joint_map, methods=["POST"]),
@@ -126,10 +122,7 @@ class RetargetPanel:
                               iterations=options["iterations"], lengths=options["lengths"],
                               scale=parse_scale(options["scale"]), init=options["init"], source_path=str(source.path),
                               target_path=None if target is None else str(target.path), progress=progress)
-            with self._lock:
-                self._results[key] = (result, source, target, options)
-                while len(self._results) > KEEP_RESULTS:
-                    self._results.popitem(last=False)
+            self._results.put(key, (result, source, target, options))
             rep = result.report
             cm = 100.0 * result.motion.meters_per_unit  # the report is in target units
             return {"key": key, **takes.skeleton(result.motion),
@@ -142,11 +135,7 @@ class RetargetPanel:
         return JSONResponse({"job": job.id})
 
     def result(self, key: str):
-        with self._lock:
-            found = self._results.get(key)
-        if found is None:
-            raise StudioError(404, "this retarget result is no longer kept: run it again")
-        return found
+        return self._results.get(key)
 
     def positions(self, request: Request) -> Response:
         result = self.result(request.query_params.get("key", ""))[0]

@@ -128,3 +128,16 @@ def series(kin, joints: list[str], quantities: list[str]) -> dict:
         v = np.round(np.asarray(s["values"], dtype=np.float64), 5)
         s["values"] = np.where(np.isfinite(v), v, None).tolist()  # JSON has no NaN: null
     return {"time": np.round(kin.time, 6).tolist(), "series": out, "com": kin.com is not None}
+
+
+def series_query(kin, params, max_joints: int = 200) -> dict:
+    """:func:`series` for a request's ``joints`` (comma-separated) and ``q`` (quantities)
+    parameters; ``StudioError`` 400 for a name the take does not have."""
+    from usdmotion.studio.errors import StudioError
+
+    joints = [j for j in params.get("joints", "").split(",") if j][:max_joints]
+    quantities = [q for q in params.get("q", "bend,speed,com_height,com_speed").split(",") if q]
+    bad = [j for j in joints if j not in kin.joint_names] + [q for q in quantities if q not in QUANTITIES]
+    if bad:
+        raise StudioError(400, f"unknown joint or quantity {bad[0]!r}")
+    return series(kin, joints, quantities)
