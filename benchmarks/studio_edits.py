@@ -36,11 +36,11 @@ OPERATIONS = {
                               "subtree": True}],
     "equaliser (whole body)": [{"op": "equalize", "gains": [0, 0.5, 1, 1, 1.5, 1, 1]}],
     "trim": [{"op": "trim", "start": 1000, "stop": 9000}],
-    "speed curve": [{"op": "speed", "keys": [[0, 1], [30, 0.5], [60, 1.5]]}],
+    "speed curve": [{"op": "speed", "keys": [["0s", 1], ["30s", 0.5], ["60s", 1.5]]}],
     "cycle (best loop)": [{"op": "trim", "start": 0, "stop": 600}, {"op": "cycle", "stop": "auto", "loops": 16}],
-    "displace": [{"op": "displace", "keys": [{"joint": "LeftArm", "frame": 20, "rotate": [0, 0, 30]}],
-                  "falloff": 1.0}],
-    "blend with a second take": [{"op": "blend", "with": "0/lib/second.bvh", "at": 40, "transition": 1}],
+    "displace": [{"op": "displace", "keys": [{"joint": "LeftArm", "frame": "20s", "rotate": [0, 0, 30]}],
+                  "falloff": "1s"}],
+    "blend with a second take": [{"op": "blend", "with": "0/lib/second.bvh", "at": "40s", "transition": "1s"}],
 }
 
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from studio_support import make_library, running_studio, shoot, studio_with_output
-from test_studio_browser import CHROMIUM, WALK_ID, browser, open_view, page  # noqa: F401 - fixtures
+from test_studio_browser import CHROMIUM, TURNED_ID, WALK_ID, browser, open_view, page  # noqa: F401 - fixtures
 from usdmotion.io import read_motion
 from usdmotion.kinematics import joint_positions
 
@@ -72,6 +72,56 @@ def test_equaliser_slider_changes_only_the_chosen_limb(studio, page):
     saved_id = page.get_attribute("#edit-panel", "data-saved")
     assert saved_id == "1/lib/walk.edit.bvh"
     page.wait_for_function(f"() => [...document.querySelectorAll('#takes td')].some(td => td.textContent === 'lib/walk.edit.bvh')")
+
+
+def test_displace_at_the_current_frame_with_a_falloff_in_seconds(studio, page):
+    """A key at the frame under the cursor, blended over 0.25 s: the library's displace with the
+    same key (frame 150, falloff 30 frames at 120 fps)."""
+    from usdmotion.ops.edit import displace
+
+    base, lib, _ = studio
+    open_view(page, base, f"take={WALK_ID}&f=150")
+    page.click("#edit-panel summary")
+    page.select_option("#disp-joint", "LeftArm")
+    page.fill("#disp-falloff", "0.25")
+    page.fill("#disp-rz", "30")
+    page.dispatch_event("#disp-rz", "change")
+    page.wait_for_selector("#edit-panel[data-state=preview]", timeout=60_000)
+    walk = read_motion(lib / "walk.bvh", units="asf")
+    expected = displace(walk, [{"joint": "LeftArm", "frame": 150, "rotate": [0, 0, 30]}], falloff=30)
+    np.testing.assert_allclose(page_positions(page, "figure"),
+                               joint_positions(expected) * walk.meters_per_unit, atol=1e-5)
+    moved = np.abs(page_positions(page, "figure") - page_positions(page, "ghost")).max(axis=(1, 2))
+    assert moved[150] > 0.02 and moved[:150 - 31].max() == 0 and moved[150 + 31:].max() == 0
+
+
+def test_speed_curve_then_blend_with_a_second_take(studio, page):
+    """The speed curve in seconds and a blend into the library's second take: the library's
+    own operations with the same values (seconds × 120 fps)."""
+    from usdmotion.ops.edit import blend, speed
+
+    base, lib, _ = studio
+    open_view(page, base, f"take={WALK_ID}")
+    page.click("#edit-panel summary")
+    page.fill("#edit-speed", "0:1, 2:0.5, 4:1.5")
+    page.dispatch_event("#edit-speed", "change")
+    page.wait_for_selector("#edit-panel[data-state=preview]", timeout=60_000)
+    walk = read_motion(lib / "walk.bvh", units="asf")
+    slowed = speed(walk, keys=[(0, 1.0), (240, 0.5), (480, 1.5)])
+    assert page.evaluate("() => window.studio.player.figure.take.frames") == slowed.n_frames != walk.n_frames
+    np.testing.assert_allclose(page_positions(page, "figure"), joint_positions(slowed) * walk.meters_per_unit,
+                               atol=1e-5)
+    page.fill("#edit-speed", "1")
+    page.select_option("#blend-with", TURNED_ID)
+    page.fill("#blend-at", "2")
+    page.fill("#blend-transition", "0.5")
+    page.evaluate("() => document.querySelector('#edit-panel').dataset.state = ''")
+    page.dispatch_event("#blend-transition", "change")
+    page.wait_for_selector("#edit-panel[data-state=preview]", timeout=60_000)
+    turned = read_motion(lib / "session2" / "walk_turned.usda")
+    blended = blend(walk, turned, at=240, transition=60)
+    np.testing.assert_allclose(page_positions(page, "figure"), joint_positions(blended) * walk.meters_per_unit,
+                               atol=1e-5)
 
 
 @pytest.mark.parametrize("field, value, message", [
