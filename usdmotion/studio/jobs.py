@@ -254,10 +254,10 @@ class Kept:
 def library_name(library, out: Path | None, entry) -> str:
     """``"<root name>/<relative path>"`` of a take for :func:`output_path`; a take already in the
     output folder keeps its place there (an edit of an edit is written beside it)."""
+    if out is not None and entry.path.is_relative_to(Path(out).resolve()):
+        return entry.path.relative_to(Path(out).resolve()).as_posix()
     index, _, rel = entry.id.partition("/")
     root = library.roots[int(index)]
-    if out is not None and root == Path(out).resolve():
-        return rel
     return f"{(root.parent if root.is_file() else root).name}/{rel}"
 
 
