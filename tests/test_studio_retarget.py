@@ -100,3 +100,36 @@ def test_a_rig_that_cannot_be_mapped_shows_one_line(studio, page):
     assert "\n" not in text
     assert page.evaluate("async () => (await fetch('/api/takes')).status") == 200
     assert written() == before  # nothing written
+
+
+def test_joint_map_through_rig_profiles(studio, page):
+    """A joint map through two rig profiles: a target that does not fit its profile shows the
+    map reader's one line; one that fits shows the map that ``prepare`` makes from the same map
+    document (the JSON ``usdmotion retarget --map`` would read)."""
+    from usdmotion.ops.retarget import prepare
+    from usdmotion.ops.retarget.jointmap import joint_map_from_document
+
+    base, lib, _ = studio
+    open_view(page, base, f"take={WALK_ID}")
+    page.click("#retarget-panel summary")
+    page.select_option("#rt-target", "0/alien_rig.bvh")
+    page.select_option("#rt-source-profile", "cmu_cgspeed")
+    page.select_option("#rt-target-profile", "mixamo")
+    page.click("#rt-show-map")
+    page.wait_for_selector("#retarget-panel[data-state=error]", timeout=30_000)
+    text = page.inner_text("#retarget-status")
+    assert text == "usdmotion: error: <input>: the target skeleton does not fit rig profile 'mixamo'"
+    page.select_option("#rt-target", "0/session2/walk_turned.usda")
+    page.select_option("#rt-target-profile", "cmu_cgspeed")
+    page.click("#rt-show-map")
+    page.wait_for_selector("#retarget-panel[data-state=mapped]", timeout=30_000)
+    walk = read_motion(lib / "walk.bvh", units="asf")
+    turned = read_motion(lib / "session2" / "walk_turned.usda")
+    doc = {"source_profile": "cmu_cgspeed", "target_profile": "cmu_cgspeed", "auto": True}
+    setup = prepare(walk, turned, joint_map=joint_map_from_document(doc))
+    shown = [row.split("\t") for row in page.locator("#rt-map tbody tr").all_inner_texts()]
+    expected = [[t, s or "— not mapped"] for t, s, e in
+                zip(turned.joint_names, (setup.joint_map.pairs.get(n) for n in turned.joint_names), turned.end_sites)
+                if not e]
+    assert shown == expected
+    assert "rig profiles cmu_cgspeed -> cmu_cgspeed" in page.inner_text("#retarget-status")

@@ -78,7 +78,7 @@ class EditPanel:
 
     def __init__(self, api) -> None:
         self.api = api
-        self._previews = Kept(KEEP_PREVIEWS, "this preview is no longer kept: edit again")
+        self._previews = Kept(KEEP_PREVIEWS)
 
     def routes(self) -> list[Route]:
         return [Route("/api/edit/groups", self.groups), Route("/api/edit/preview", self.preview, methods=["POST"]),
@@ -145,7 +145,10 @@ class EditPanel:
         return JSONResponse(await run_in_threadpool(compute))
 
     def edited(self, request: Request):
-        return self._previews.get(request.query_params.get("key", ""))
+        found = self._previews.get(request.query_params.get("key", ""))
+        if found is None:
+            raise StudioError(404, "this preview is no longer kept: edit again")
+        return found
 
     def cached(self, request: Request, what: str, compute):
         motion, values = self.edited(request)

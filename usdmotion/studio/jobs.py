@@ -229,10 +229,10 @@ def output_path(out: Path, source: str, suffix: str, ext: str, taken=frozenset()
 
 class Kept:
     """The last ``size`` results a panel computed (edited motions, retarget results), by key,
-    for the page's follow-up requests; a key no longer kept is a 404 with ``missing``."""
+    for the page's follow-up requests."""
 
-    def __init__(self, size: int, missing: str) -> None:
-        self.size, self.missing = size, missing
+    def __init__(self, size: int) -> None:
+        self.size = size
         self._items: OrderedDict[str, object] = OrderedDict()
         self._lock = threading.Lock()
 
@@ -244,11 +244,9 @@ class Kept:
                 self._items.popitem(last=False)
 
     def get(self, key: str):
+        """The value kept under ``key``, or ``None``."""
         with self._lock:
-            found = self._items.get(key)
-        if found is None:
-            raise StudioError(404, self.missing)
-        return found
+            return self._items.get(key)
 
 
 def library_name(library, out: Path | None, entry) -> str:

@@ -2,7 +2,7 @@
 // removed), see the automatic joint map and what could not be mapped, retarget as a job with a
 // progress bar, then play the target with the source as the ghost and the per-joint error;
 // Save as USD or BVH (the CLI's writer). Every number comes from usdmotion.ops.retarget.
-import {getFloats} from './api.js';
+import {getFloats, getJSON} from './api.js';
 import {JobBar, postJSON} from './jobs.js';
 
 const $ = id => document.getElementById(id);
@@ -23,6 +23,9 @@ export function mountRetarget(studio) {
     const body = {take: take.id, remove: $('rt-remove').value, scale: $('rt-scale').value,
                   lengths: $('rt-lengths').value};
     if ($('rt-target').value) body.target = $('rt-target').value;
+    if ($('rt-source-profile').value && $('rt-target-profile').value) {
+      body.profiles = [$('rt-source-profile').value, $('rt-target-profile').value];
+    }
     return body;
   }
 
@@ -88,6 +91,11 @@ export function mountRetarget(studio) {
     }
   }
 
+  getJSON('/api/retarget/profiles').then(({profiles}) => {
+    for (const id of ['rt-source-profile', 'rt-target-profile']) {
+      $(id).append(...profiles.map(p => Object.assign(new Option(p.name, p.name), {title: p.description})));
+    }
+  }).catch(() => {});
   $('rt-show-map').onclick = showMap;
   $('rt-run').onclick = run;
   $('rt-save').onclick = save;
