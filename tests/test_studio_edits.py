@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from studio_support import WALK as REPO_WALK
 from studio_support import make_library, running_studio, shoot, studio_with_output
 from test_studio_browser import CHROMIUM, TURNED_ID, WALK_ID, browser, open_view, page  # noqa: F401 - fixtures
 from usdmotion.io import read_motion
@@ -170,3 +171,22 @@ def test_an_unwritable_output_folder_shows_one_line_and_writes_nothing(tmp_path,
             context.close()
     assert sorted(p.name for p in out.iterdir()) == ["cache", "lib"]
     assert (out / "lib").read_text() == "a file where the studio wants a folder"
+
+
+@pytest.mark.parametrize("edit", ["limb", "arm key", "whole body", "trim"])
+def test_preview_positions_are_the_full_fk_bit_for_bit(edit):
+    """The preview recomputes only the joints below a changed one: the numbers are exactly
+    view_positions' (the library's FK of every joint)."""
+    from usdmotion.ops.edit import displace, equalize, trim
+    from usdmotion.studio.takes import edited_view_positions, view_positions
+
+    walk = read_motion(REPO_WALK, units="asf")
+    edited = {"limb": lambda: equalize(walk, gains=[1, 1, 1, 3], joint="RightUpLeg", subtree=True),
+              "arm key": lambda: displace(walk, [{"joint": "LeftForeArm", "frame": 100, "rotate": [20, 0, 0]}],
+                                          falloff=30),
+              "whole body": lambda: equalize(walk, gains=[0, 1, 2]),
+              "trim": lambda: trim(walk, 10, 300)}[edit]()
+    original = view_positions(walk)
+    fast = edited_view_positions(walk, original, edited)
+    np.testing.assert_array_equal(fast, view_positions(edited))
+    assert fast.dtype == np.float32 and fast.shape == (edited.n_frames, walk.n_joints, 3)

@@ -139,7 +139,7 @@ class EditPanel:
 
         def compute() -> dict:
             original, edited = self.run(entry, ops, others)
-            self._previews.put(key, (edited, {}))
+            self._previews.put(key, (edited, {"entry": entry}))
             return {"key": key, **takes.skeleton(edited), "map": time_map(original, edited, ops)}
 
         return JSONResponse(await run_in_threadpool(compute))
@@ -157,8 +157,12 @@ class EditPanel:
         return values[what]
 
     def positions(self, request: Request) -> Response:
-        return Response(self.cached(request, "positions", takes.view_positions).tobytes(),
-                        media_type="application/octet-stream")
+        entry = self.edited(request)[1]["entry"]
+        original = self.api.compute(entry, "motion", None)
+        original_view = self.api.compute(entry, "positions", takes.view_positions)
+        positions = self.cached(request, "positions",
+                                lambda edited: takes.edited_view_positions(original, original_view, edited))
+        return Response(positions.tobytes(), media_type="application/octet-stream")
 
     def series(self, request: Request) -> Response:
         kin = self.cached(request, "analysis", takes.analysis)
