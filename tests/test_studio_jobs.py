@@ -232,3 +232,16 @@ def test_saved_takes_are_listed_and_an_edit_of_one_is_written_beside_it(tmp_path
         assert first in listed and not [p for p in listed if p.suffix == ".glb"]
         again = api.jobs.output_path(library_name(api.library, out, listed[first]), "edit", "bvh")
         assert again == out / "lib" / "walk.edit.edit.bvh"
+
+
+def test_stopping_the_server_cancels_running_jobs_and_leaves_no_file(tmp_path):
+    from usdmotion.studio.app import create_app
+
+    app = create_app([make_library(tmp_path)], {"units": "asf"}, tmp_path / "out")
+    jobs = app.state.api.jobs
+    with serving(app) as base:
+        target = jobs.output_path("lib/walk.bvh", "stop", "txt")
+        job = jobs.submit("test", [target], stepping_work(100_000, 0.001))
+        wait_state(base, job.id, ("running",))
+    assert job.state == "cancelled" and not job.thread.is_alive()
+    assert not target.exists() and not list(target.parent.glob(".walk.*"))

@@ -67,6 +67,7 @@ class Job:
     created: float = field(default_factory=time.time)
     cancelled: threading.Event = field(default_factory=threading.Event)
     existed: list[bool] = field(default_factory=list)
+    thread: threading.Thread | None = None
 
     def progress(self, current: float, total: float | None, message: str = "") -> None:
         """The job's :class:`~usdmotion.progress.Progress`: records the report; raises
@@ -119,9 +120,9 @@ class Jobs:
             job = Job(next(self._ids), kind, outputs, existed=[p.exists() for p in outputs])
             self._jobs[job.id] = job
             self._forget_old()
-        thread = threading.Thread(target=self._run, args=(job, work, names or {}), name=f"studio-job-{job.id}",
-                                  daemon=True)
-        thread.start()
+        job.thread = threading.Thread(target=self._run, args=(job, work, names or {}), name=f"studio-job-{job.id}",
+                                      daemon=True)
+        job.thread.start()
         return job
 
     def get(self, job_id: int) -> Job:
@@ -151,6 +152,17 @@ class Jobs:
         with self._lock:
             taken = {p for job in self._jobs.values() if job.active for p in job.outputs}
         return output_path(self.out, source, suffix, ext, taken)
+
+    def shutdown(self, timeout_s: float = 20.0) -> None:
+        """Cancel every queued or running job and wait (up to ``timeout_s``) for them to stop,
+        so a server that stops leaves no partial file."""
+        active = [job for job in self.list() if job.active]
+        for job in active:
+            self.cancel(job.id)
+        deadline = time.monotonic() + timeout_s
+        for job in active:
+            if job.thread is not None:
+                job.thread.join(max(0.0, deadline - time.monotonic()))
 
     def shown(self, path: Path) -> str:
         """``path`` as the page shows it: relative to the output folder, under its name."""
