@@ -8,6 +8,7 @@ import io
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from studio_support import shoot, studio_with_output
@@ -68,3 +69,21 @@ def test_cancel_a_render_from_the_page_leaves_no_file(studio, page):
     page.wait_for_selector("#video-bar .job-bar[data-state=cancelled]", timeout=30_000)
     assert "cancelled; no file was kept" in page.inner_text("#video-bar")
     assert not [p for p in out.rglob("*walk_turned*") if "cache" not in p.parts]  # no video, no temporary file
+
+
+@pytest.mark.parametrize("offset", [0.5, -0.25, 0.0])
+def test_a_manual_offset_renders_the_ghost_the_page_shows(offset):
+    """The video's ghost frames (the renderer's plan) are the player's ghost frames for the
+    same manual offset (the studio's compare.offset_frame_map), frame by frame."""
+    from studio_support import SHIFT, WALK
+    from usdmotion.io import read_motion
+    from usdmotion.render import plan_render
+    from usdmotion.studio.compare import offset_frame_map
+    from usdmotion.studio.video_panel import render_options
+
+    walk = read_motion(WALK, units="asf")
+    other = walk.sliced(SHIFT, None)
+    options = render_options({"align": "offset", "offset": offset, "size": "640x360"}, walk, other)
+    plan = plan_render(walk, options, other)
+    shown = offset_frame_map(walk, other, offset)[plan.frames]
+    np.testing.assert_allclose(plan.other_frames, shown, atol=0.5 + 1e-9)
