@@ -58,6 +58,11 @@ def test_retarget_in_the_browser_matches_the_cli(studio, page, tmp_path):
     assert page.evaluate("() => window.studio.player.figure.take.end_sites.filter(e => !e).length") == 18
     assert page.evaluate("() => window.studio.player.ghost.take.id") == WALK_ID
     table = [row.split("\t") for row in page.locator("#rt-errors tbody tr").all_inner_texts()]
+    # the target's joints are coloured by their error: the worst red, the best green
+    colours = page.evaluate("""names => names.map(n => { const f = window.studio.player.figure, c = f.joints.instanceColor;
+        const j = f.take.joint_names.indexOf(n); return [c.getX(j), c.getY(j), c.getZ(j)]; })""",
+                            [table[0][0], table[-1][0]])
+    assert colours[0][0] > colours[0][1] and colours[1][1] > colours[1][0]
     shoot(page, "retarget.png", frame=200)
     page.select_option("#rt-format", "usda")
     page.click("#rt-save")

@@ -2,6 +2,7 @@
 // removed), see the automatic joint map and what could not be mapped, retarget as a job with a
 // progress bar, then play the target with the source as the ghost and the per-joint error;
 // Save as USD or BVH (the CLI's writer). Every number comes from usdmotion.ops.retarget.
+import * as THREE from 'three';
 import {getFloats, getJSON} from './api.js';
 import {JobBar, postJSON} from './jobs.js';
 
@@ -74,11 +75,27 @@ export function mountRetarget(studio) {
     player.setTake(target);
     player.setGhost(take, null);
     player.setFrame(frame);
+    colourByError(player.figure, result.per_joint_rms_cm);
     const rows = Object.entries(result.per_joint_rms_cm).sort((a, b) => b[1] - a[1])
       .map(([name, v]) => [name, v.toFixed(2)]);
     $('rt-errors').replaceChildren(table(rows, ['target joint', 'RMS error (cm)']));
-    runBar.say(`retargeted: ${result.summary} (source: orange ghost)`);
+    runBar.say(`retargeted: ${result.summary} (source: orange ghost; joints green → red by error)`);
     $('retarget-panel').dataset.state = 'done';
+  }
+
+  /** The target's joint spheres coloured by their RMS error: green (least) to red (most). */
+  function colourByError(figure, errors) {
+    const worst = Math.max(1e-9, ...Object.values(errors));
+    const colour = new THREE.Color();
+    figure.joints.material.color.set(0xffffff);
+    figure.take.joint_names.forEach((name, j) => {
+      const e = errors[name];
+      if (e === undefined) colour.set(0x888888);
+      else colour.setHSL(0.33 * (1 - e / worst), 0.85, 0.45);
+      figure.joints.setColorAt(j, colour);
+    });
+    figure.joints.instanceColor.needsUpdate = true;
+    player.dirty = true;
   }
 
   async function save() {
