@@ -11,6 +11,8 @@ from pathlib import Path
 from usdmotion.io import read_motion, write_motion
 
 REPO = Path(__file__).resolve().parents[1]
+#: Where the browser tests write their screenshots (the best are committed under docs/studio/).
+SHOTS = REPO / "out" / "studio-screenshots"
 WALK = REPO / "usdmotion" / "data" / "cmu_12_01_walk.bvh"
 #: The second take is the walk from this frame on, turned and moved: DTW must find the
 #: shift and the spatial alignment must undo the turn.
@@ -40,10 +42,17 @@ def make_library(folder: Path) -> Path:
 @contextlib.contextmanager
 def running_studio(roots: list[Path], units: str | None = "asf", out: Path | None = None):
     """Serve the studio on 127.0.0.1 and a free port; yields the base URL; always stops it."""
+    from usdmotion.studio.app import create_app
+
+    with serving(create_app(roots, {"units": units}, out)) as base:
+        yield base
+
+
+@contextlib.contextmanager
+def serving(app):
+    """Serve ``app`` (uvicorn) on 127.0.0.1 and a free port; yields the base URL; always stops it."""
     import uvicorn
 
-    from usdmotion.studio.app import create_app
-    app = create_app(roots, {"units": units}, out)
     sock = socket.socket()
     sock.bind(("127.0.0.1", 0))
     server = uvicorn.Server(uvicorn.Config(app, log_level="warning"))
@@ -74,3 +83,32 @@ def raw_get(base: str, target: str) -> tuple[int, bytes]:
         return response.status, response.read()
     finally:
         conn.close()
+
+
+def shoot(page, name: str, frame: int | None = None) -> None:
+    """A screenshot of the view with the open tool panel (a taller window, so both show)."""
+    page.set_viewport_size({"width": 1400, "height": 1350})
+    if frame is not None:
+        page.evaluate(f"() => window.studio.player.setFrame({frame})")
+    page.wait_for_timeout(300)
+    SHOTS.mkdir(parents=True, exist_ok=True)
+    page.screenshot(path=SHOTS / name)
+    page.set_viewport_size({"width": 1400, "height": 900})
+
+
+@contextlib.contextmanager
+def studio_with_output(folder: Path, prepare=None):
+    """A studio over :func:`make_library` in ``folder`` writing to ``folder/out`` (the tools'
+    tests); ``prepare(lib)`` adds takes first. Yields ``(base URL, lib, out)``; skips when the
+    web packages are not installed."""
+    import pytest
+
+    from usdmotion.studio.app import missing_web_packages
+
+    if missing_web_packages():
+        pytest.skip(f"studio web packages missing ({missing_web_packages()}): run scripts/setup.sh")
+    lib = make_library(folder)
+    if prepare is not None:
+        prepare(lib)
+    with running_studio([lib], out=folder / "out") as base:
+        yield base, lib, folder / "out"

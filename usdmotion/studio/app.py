@@ -18,22 +18,15 @@ from starlette.routing import Mount, Route
 from starlette.staticfiles import StaticFiles
 
 from usdmotion.studio import compare, takes
+from usdmotion.studio.errors import StudioError
 from usdmotion.studio.library import Entry, Library, error_line, read_options
 
 WEB = Path(__file__).with_name("web")
 NODE_MODULES = WEB / "node_modules"
-#: Largest request body accepted (the API is read-only: GET requests carry none).
+#: Largest request body accepted (GET requests carry none; a job's parameters are small JSON).
 MAX_BODY_BYTES = 64 * 1024
 #: Most ids in one metadata request, joints in one series request.
 MAX_IDS = 200
-
-
-class StudioError(Exception):
-    """An answer other than 200: ``status`` and a one-line message."""
-
-    def __init__(self, status: int, message: str) -> None:
-        super().__init__(message)
-        self.status = status
 
 
 def missing_web_packages() -> list[str]:
@@ -98,12 +91,7 @@ class StudioApi:
 
     def series(self, request: Request) -> Response:
         kin = self.compute(self.take(request), "analysis", takes.analysis)
-        joints = [j for j in request.query_params.get("joints", "").split(",") if j][:MAX_IDS]
-        quantities = [q for q in request.query_params.get("q", "bend,speed,com_height,com_speed").split(",") if q]
-        bad = [j for j in joints if j not in kin.joint_names] + [q for q in quantities if q not in takes.QUANTITIES]
-        if bad:
-            raise StudioError(400, f"unknown joint or quantity {bad[0]!r}")
-        return JSONResponse(takes.series(kin, joints, quantities))
+        return JSONResponse(takes.series_query(kin, request.query_params, MAX_IDS))
 
     def glb(self, request: Request) -> Response:
         from usdmotion.io.gltf import glb_bytes
@@ -142,21 +130,47 @@ def _compare_params(request: Request, n_frames: int) -> tuple[str, float, int]:
 def create_app(roots: list[Path], options: dict | None = None, out: Path | None = None) -> Starlette:
     """The studio over ``roots``, reading with ``options`` (:func:`usdmotion.io.read_motion`
     keywords); ``out`` is the only folder it may write to (created on first use)."""
+    from usdmotion.studio import edit_panel, jobs, retarget_panel, video_panel
+
     options = read_options(**(options or {}))
     cache = takes.TakeCache(options)
-    api = StudioApi(Library(roots, options, read=cache.motion), cache, options, out)
+    out = None if out is None else Path(out).absolute()
+    listed = [*roots, out] if out is not None and not _inside_any(out, roots) else roots  # what the studio writes
+    api = StudioApi(Library(listed, options, read=cache.motion, skip=[] if out is None else [out / "cache"]),
+                    cache, options, out)
+    api.jobs = jobs.Jobs(out)
 
     def index(request: Request) -> Response:
         return FileResponse(WEB / "index.html", headers={"Cache-Control": "no-cache"})
 
-    routes = [Route("/", index), *api.routes(),
+    routes = [Route("/", index), *api.routes(), *jobs.routes(api.jobs), *edit_panel.routes(api),
+              *retarget_panel.routes(api), *video_panel.routes(api),
               Mount("/app", _Static(directory=WEB, check_dir=False), name="app"),
               Mount("/vendor/three", _Static(directory=NODE_MODULES / "three", check_dir=False), name="three"),
               Mount("/vendor/uplot", _Static(directory=NODE_MODULES / "uplot", check_dir=False), name="uplot")]
-    app = Starlette(routes=routes, exception_handlers={StudioError: _error_response})
+    app = Starlette(routes=routes, exception_handlers={StudioError: _error_response}, lifespan=_stops_jobs(api.jobs))
     app.add_middleware(_Guard)
     app.state.api = api
     return app
+
+
+def _stops_jobs(jobs):
+    """The app's lifespan: when the server stops, running jobs are cancelled and waited for."""
+    import contextlib
+
+    from starlette.concurrency import run_in_threadpool
+
+    @contextlib.asynccontextmanager
+    async def lifespan(app):
+        yield
+        await run_in_threadpool(jobs.shutdown)
+
+    return lifespan
+
+
+def _inside_any(path: Path, roots: list[Path]) -> bool:
+    path = path.resolve()
+    return any(path.is_relative_to(Path(r).resolve()) for r in roots if Path(r).is_dir())
 
 
 def cached_glb(entry: Entry, options: dict, out: Path | None, make) -> bytes:
@@ -197,8 +211,10 @@ async def _error_response(request: Request, exc: StudioError) -> Response:
 
 
 class _Guard:
-    """Read-only, bounded requests (GET/HEAD, no body over ``MAX_BODY_BYTES``); adds a
-    ``Server-Timing`` header with the time the server spent on the request."""
+    """Bounded requests (no body over ``MAX_BODY_BYTES``); only GET/HEAD, except POST (JSON)
+    and DELETE on ``/api/`` from the studio's own page (a cross-site ``Origin`` is refused, so
+    another web site cannot start jobs); adds a ``Server-Timing`` header with the time the
+    server spent on the request."""
 
     def __init__(self, app) -> None:
         self.app = app
@@ -208,7 +224,7 @@ class _Guard:
             return await self.app(scope, receive, send)
         headers = dict(scope.get("headers") or [])
         length = headers.get(b"content-length", b"0")
-        if scope["method"] not in ("GET", "HEAD"):
+        if scope["method"] not in ("GET", "HEAD") and not _same_site_api_call(scope, headers):
             return await JSONResponse({"error": "read-only"}, status_code=405)(scope, receive, send)
         if not length.isdigit() or int(length) > MAX_BODY_BYTES:
             return await JSONResponse({"error": "request too large"}, status_code=413)(scope, receive, send)
@@ -223,3 +239,16 @@ class _Guard:
             await send(message)
 
         await self.app(scope, receive, timed_send)
+
+
+def _same_site_api_call(scope, headers: dict) -> bool:
+    """A POST with a JSON body or a DELETE, to ``/api/``, sent by a page of this server (or no browser)."""
+    if scope["method"] not in ("POST", "DELETE") or not scope["path"].startswith("/api/"):
+        return False
+    if scope["method"] == "POST" and not headers.get(b"content-type", b"").startswith(b"application/json"):
+        return False
+    origin = headers.get(b"origin")
+    if origin is None:
+        return True
+    host = headers.get(b"host", b"")
+    return origin.split(b"://", 1)[-1] == host

@@ -40,8 +40,11 @@ class Entry:
 class Library:
     """Takes under ``roots`` (folders, searched recursively, or single files)."""
 
-    def __init__(self, roots: list[Path], options: dict | None = None, read=None) -> None:
+    def __init__(self, roots: list[Path], options: dict | None = None, read=None,
+                 skip: list[Path] | None = None) -> None:
         self.roots = [Path(r).resolve() for r in roots]
+        #: folders not listed (the output folder's cache of GLB bodies)
+        self.skip = {Path(os.path.realpath(p)) for p in skip or []}
         self.options = options or {}
         #: ``read(entry) -> Motion``; the app passes its take cache so a take listed is already read
         self.read = read or (lambda entry: read_take(entry, self.options))
@@ -57,7 +60,7 @@ class Library:
                 entries += [entry] if entry else []
                 continue
             for folder, dirs, files in os.walk(root):
-                dirs[:] = sorted(d for d in dirs if not d.startswith("."))
+                dirs[:] = sorted(d for d in dirs if not d.startswith(".") and Path(folder, d) not in self.skip)
                 rel = Path(folder).relative_to(root)
                 for name in sorted(files):
                     if name.lower().endswith(MOTION_EXTENSIONS) and not name.startswith("."):
@@ -85,7 +88,7 @@ class Library:
             path = root
         else:
             path = Path(os.path.realpath(root / rel))
-            if not path.is_relative_to(root):  # a symlink out of the root, or ..
+            if not path.is_relative_to(root) or any(path.is_relative_to(s) for s in self.skip):  # out of the root
                 return None
         if not path.name.lower().endswith(MOTION_EXTENSIONS):
             return None

@@ -34,8 +34,6 @@ def pipeline_schema() -> dict:
 
 def load_pipeline(path: str | os.PathLike) -> list[dict]:
     """Read and validate a pipeline file; returns its list of operations."""
-    import jsonschema
-
     path = Path(path)
     try:
         document = json.loads(path.read_text(encoding="utf-8"))
@@ -45,6 +43,14 @@ def load_pipeline(path: str | os.PathLike) -> list[dict]:
         raise InputError(path, "not a UTF-8 text file") from None
     except json.JSONDecodeError as exc:
         raise InputError(path, f"not valid JSON: {exc.msg}", line=exc.lineno, column=exc.colno) from None
+    return validate_pipeline(document, path)
+
+
+def validate_pipeline(document, path: str | os.PathLike | None = None) -> list[dict]:
+    """``document`` (a parsed pipeline) checked against the schema; ``InputError`` naming
+    ``path`` and the offending operation otherwise."""
+    import jsonschema
+
     validator = jsonschema.Draft202012Validator(pipeline_schema())
     error = jsonschema.exceptions.best_match(validator.iter_errors(document))
     if error is not None:

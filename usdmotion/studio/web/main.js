@@ -4,6 +4,9 @@ import {getJSON, loadTake, takeGlb} from './api.js';
 import {LibraryView} from './library.js';
 import {Player} from './player.js';
 import {Plots} from './plots.js';
+import {mountEdits} from './edits.js';
+import {mountRetarget} from './retarget.js';
+import {mountVideo} from './video.js';
 
 const $ = id => document.getElementById(id);
 const params = new URLSearchParams(location.search);
@@ -61,6 +64,12 @@ player.onOrbit = () => { player.cameraMode = 'orbit'; $('camera').value = 'orbit
 player.onCamera = () => { clearTimeout(player.urlTimer); player.urlTimer = setTimeout(writeUrl, 300); };
 const plots = new Plots($('plots'), t => player.setFrame(Math.round(t * player.fps)));
 const library = new LibraryView($('takes'), $('filter'), $('library-status'), id => openTake(id, true));
+// the tool panels (edits, retarget, video) see the page through these few hooks
+const tools = {player, plots, take: () => take, state, reopen: () => openTake(state.take, false),
+  plotQuery: () => ({joints: state.joints.join(','), q: state.q.join(',')}),
+  refreshLibrary: async () => { await library.load(); await library.fill(); fillTakeLists(); }};
+const edits = mountEdits(tools), retargeting = mountRetarget(tools);
+mountVideo(tools);
 
 async function openTake(id, fresh) {
   player.openedAt = performance.now();
@@ -96,6 +105,8 @@ async function openTake(id, fresh) {
   $('camera').value = state.cam;
   fillJoints();
   player.setFrame(state.frame);
+  edits.opened(take);
+  retargeting.opened(take);
   takeShown();
   $('view-message').textContent = 'body: loading…';
   // the body first, then the plots (their analysis would slow the body's first build on the server)
@@ -271,6 +282,14 @@ function wire() {
   $('align-mode').value = state.align; $('offset').value = state.offset; $('align-space').value = state.space;
 }
 
+function fillTakeLists() {
+  const options = library.readable().map(t => new Option(t.name, t.id));
+  $('compare').replaceChildren(new Option('—', ''), ...options.map(o => o.cloneNode(true)));
+  $('compare').value = state.compare;
+  edits.libraryFilled(options);
+  retargeting.libraryFilled(options);
+}
+
 async function start() {
   wire();
   player.warmUp();  // while the take's arrays are on their way
@@ -278,9 +297,7 @@ async function start() {
   await library.load();  // the list of takes, at once
   if (opening) await Promise.race([shown, opening]);  // a linked take is drawn before the library is read
   await library.fill();
-  const options = library.readable().map(t => new Option(t.name, t.id));
-  $('compare').replaceChildren(new Option('—', ''), ...options);
-  $('compare').value = state.compare;
+  fillTakeLists();
   await opening;
   document.body.dataset.loaded = '1';
 }

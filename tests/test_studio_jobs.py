@@ -1,0 +1,247 @@
+"""The Studio's jobs framework over a real server: progress through the API, cancel, the
+one-line error of a failed job, two jobs on one output, a server that keeps answering
+while a job runs, and the one naming rule for the files the Studio writes."""
+
+from __future__ import annotations
+
+import http.client
+import json
+import threading
+import time
+from urllib.parse import urlsplit
+
+import pytest
+
+from studio_support import make_library, serving
+from usdmotion.errors import InputError
+from usdmotion.io.atomic import atomic_output
+from usdmotion.studio.app import StudioError
+from usdmotion.studio.jobs import Jobs, output_path
+
+
+@pytest.fixture(scope="module")
+def studio(tmp_path_factory):
+    """(base URL, library folder, output folder, the server's Jobs)."""
+    from usdmotion.studio.app import create_app
+
+    folder = tmp_path_factory.mktemp("jobs")
+    lib = make_library(folder)
+    app = create_app([lib], {"units": "asf"}, folder / "out")
+    with serving(app) as base:
+        yield base, lib, folder / "out", app.state.api.jobs
+
+
+def request(base: str, method: str, target: str, body: dict | None = None, headers: dict | None = None):
+    url = urlsplit(base)
+    conn = http.client.HTTPConnection(url.hostname, url.port, timeout=30)
+    try:
+        data = None if body is None else json.dumps(body).encode()
+        hdrs = {"Content-Type": "application/json"} if body is not None else {}
+        conn.request(method, target, body=data, headers={**hdrs, **(headers or {})})
+        response = conn.getresponse()
+        data = response.read()
+        is_json = response.getheader("content-type", "").startswith("application/json")
+        return response.status, json.loads(data) if is_json else data
+    finally:
+        conn.close()
+
+
+def wait_state(base: str, job_id: int, states=("done", "failed", "cancelled"), deadline_s: float = 60.0) -> dict:
+    end = time.monotonic() + deadline_s
+    while time.monotonic() < end:
+        status, job = request(base, "GET", f"/api/jobs/{job_id}")
+        assert status == 200
+        if job["state"] in states:
+            return job
+        time.sleep(0.02)
+    raise AssertionError(f"job {job_id} did not reach {states}: {job}")
+
+
+def stepping_work(steps: int, step_s: float, release: threading.Event | None = None):
+    """Work that writes its output atomically while reporting ``steps`` steps."""
+    def work(progress, outputs):
+        with atomic_output(outputs[0]) as tmp:
+            tmp.write_text("partial")
+            for i in range(steps):
+                progress(i, steps, "stepping")
+                if release is not None:
+                    release.wait(30)
+                time.sleep(step_s)
+            progress(steps, steps, "stepping")
+            tmp.write_text("complete")
+        return {"wrote": outputs[0].name}
+    return work
+
+
+def test_progress_and_result_reach_the_api(studio):
+    base, _, out, jobs = studio
+    target = jobs.output_path("lib/walk.bvh", "test", "txt")
+    job = jobs.submit("test", [target], stepping_work(5, 0.05))
+    seen = []
+    while True:
+        _, state = request(base, "GET", f"/api/jobs/{job.id}")
+        seen.append(state)
+        if state["state"] in ("done", "failed"):
+            break
+        time.sleep(0.01)
+    assert state["state"] == "done" and state["result"] == {"wrote": "walk.test.txt"} and state["error"] is None
+    assert target.read_text() == "complete"
+    currents = [s["current"] for s in seen if s["state"] == "running"]
+    assert currents and currents == sorted(currents) and max(currents) < 5  # intermediate reports seen
+    assert {s["total"] for s in seen if s["state"] == "running" and s["total"]} == {5.0}
+    _, listing = request(base, "GET", "/api/jobs")
+    assert job.id in [j["id"] for j in listing["jobs"]]
+
+
+def test_cancel_stops_within_a_step_and_leaves_no_file(studio):
+    base, _, out, jobs = studio
+    target = jobs.output_path("lib/walk.bvh", "cancel", "txt")
+    release = threading.Event()
+    job = jobs.submit("test", [target], stepping_work(1000, 0.0, release))
+    wait_state(base, job.id, ("running",))
+    status, answer = request(base, "DELETE", f"/api/jobs/{job.id}")
+    assert status == 200
+    at_cancel = job.current
+    release.set()  # the work goes on to its next report, which raises
+    final = wait_state(base, job.id)
+    assert final["state"] == "cancelled" and final["current"] <= at_cancel + 1
+    assert not target.exists()
+    assert [p.name for p in target.parent.iterdir() if p.name.startswith(".walk")] == []  # no temporary file
+
+
+def test_a_failed_job_keeps_the_clis_one_line_error_and_no_file(studio):
+    base, _, out, jobs = studio
+    target = jobs.output_path("lib/walk.bvh", "fail", "txt")
+
+    def work(progress, outputs):
+        with atomic_output(outputs[0]) as tmp:
+            tmp.write_text("partial")
+            raise InputError("walk.bvh", "OFFSET has 2 values, expected 3\nsecond line", line=4)
+
+    job = jobs.submit("test", [target], work)
+    final = wait_state(base, job.id)
+    assert final["state"] == "failed"
+    assert final["error"] == "usdmotion: error: walk.bvh:4: OFFSET has 2 values, expected 3"
+    assert not target.exists()
+    assert request(base, "GET", "/api/takes")[0] == 200  # the server keeps running
+
+
+def test_two_jobs_on_one_output_collide_with_one_line(studio):
+    base, _, out, jobs = studio
+    target = jobs.output_path("lib/walk.bvh", "collide", "txt")
+    release = threading.Event()
+    first = jobs.submit("test", [target], stepping_work(3, 0.0, release))
+    with pytest.raises(StudioError) as caught:
+        jobs.submit("test", [target], stepping_work(1, 0.0))
+    assert caught.value.status == 409
+    assert str(caught.value) == (f"out/lib/walk.collide.txt is already being written by job {first.id} (test); "
+                                 "wait for it or cancel it")
+    # the naming rule skips the claimed file: a second Save-as gets its own name
+    assert jobs.output_path("lib/walk.bvh", "collide", "txt").name == "walk.collide-2.txt"
+    release.set()
+    assert wait_state(base, first.id)["state"] == "done"
+    assert target.read_text() == "complete"
+
+
+def test_the_server_answers_other_requests_while_a_job_runs(studio):
+    base, _, out, jobs = studio
+    target = jobs.output_path("lib/walk.bvh", "busy", "txt")
+    release = threading.Event()
+
+    def busy(progress, outputs):  # holds a worker thread and the CPU until released
+        n = 0
+        while not release.is_set():
+            n += sum(i * i for i in range(2000))
+            progress(0, None, "busy")
+        return {"n": n}
+
+    job = jobs.submit("test", [target], busy)
+    wait_state(base, job.id, ("running",))
+    status, listing = request(base, "GET", "/api/takes")
+    assert status == 200 and len(listing["takes"]) == 3
+    assert request(base, "GET", "/api/skeleton?take=0/walk.bvh")[0] == 200
+    assert request(base, "GET", f"/api/jobs/{job.id}")[1]["state"] == "running"  # answered during the job
+    release.set()
+    assert wait_state(base, job.id)["state"] == "done"
+
+
+def test_writes_only_under_the_output_folder(studio, tmp_path):
+    base, lib, out, jobs = studio
+    with pytest.raises(StudioError, match="writes only under its output folder"):
+        jobs.submit("test", [lib / "walk.edit.bvh"], stepping_work(1, 0.0))
+    with pytest.raises(StudioError, match="without an output folder"):
+        Jobs(None).submit("test", [tmp_path / "x.txt"], stepping_work(1, 0.0))
+    with pytest.raises(StudioError, match="not a library name"):
+        output_path(out, "../walk.bvh", "edit", "bvh")
+
+
+def test_output_names_never_overwrite(tmp_path):
+    first = output_path(tmp_path, "lab/session 2/walk.bvh", "edit", "bvh")
+    assert first == tmp_path / "lab" / "session 2" / "walk.edit.bvh"
+    first.write_text("x")
+    assert output_path(tmp_path, "lab/session 2/walk.bvh", "edit", "bvh").name == "walk.edit-2.bvh"
+    assert output_path(tmp_path, "lab/walk.usda", "retarget", ".usda").name == "walk.retarget.usda"
+
+
+def test_cross_site_and_non_json_posts_are_refused(studio):
+    base = studio[0]
+    assert request(base, "DELETE", "/api/jobs/1", headers={"Origin": "http://evil.example"})[0] == 405
+    assert request(base, "POST", "/api/jobs", body={}, headers={"Origin": "http://evil.example"})[0] == 405
+    assert request(base, "DELETE", "/api/jobs/99999")[0] == 404
+    assert request(base, "DELETE", "/api/takes")[0] == 405
+
+
+def test_a_full_disk_fails_the_job_with_one_line_and_no_file(studio):
+    """The write runs out of space half-way (ENOSPC from the file system, raised where the
+    writer writes): the job fails with the atomic writer's one line and leaves nothing."""
+    import errno
+    import os
+
+    base, _, out, jobs = studio
+    target = jobs.output_path("lib/walk.bvh", "full", "txt")
+
+    def work(progress, outputs):
+        with atomic_output(outputs[0]) as tmp:
+            tmp.write_text("half of it")
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    job = jobs.submit("test", [target], work)
+    final = wait_state(base, job.id)
+    assert final["state"] == "failed"
+    assert final["error"] == f"usdmotion: error: {target}: cannot write: No space left on device"
+    assert not target.exists() and not list(target.parent.glob(".walk.*"))
+
+
+def test_saved_takes_are_listed_and_an_edit_of_one_is_written_beside_it(tmp_path):
+    """The output folder is a root of the library (or inside one: the default ``out/studio``
+    under the current folder); a take in it keeps its place there."""
+    from usdmotion.studio.app import create_app
+    from usdmotion.studio.jobs import library_name
+
+    lib = make_library(tmp_path)
+    for out in (tmp_path / "out", lib / "out" / "studio"):
+        app = create_app([lib], {"units": "asf"}, out)
+        api = app.state.api
+        walk = api.library.resolve("0/walk.bvh")
+        first = api.jobs.output_path(library_name(api.library, out, walk), "edit", "bvh")
+        assert first == out / "lib" / "walk.edit.bvh"
+        first.write_bytes((lib / "walk.bvh").read_bytes())
+        (out / "cache" / "glb").mkdir(parents=True)
+        (out / "cache" / "glb" / "body.glb").write_bytes(b"glTF")  # the body cache is never listed
+        listed = {e.path: e for e in api.library.scan()}
+        assert first in listed and not [p for p in listed if p.suffix == ".glb"]
+        again = api.jobs.output_path(library_name(api.library, out, listed[first]), "edit", "bvh")
+        assert again == out / "lib" / "walk.edit.edit.bvh"
+
+
+def test_stopping_the_server_cancels_running_jobs_and_leaves_no_file(tmp_path):
+    from usdmotion.studio.app import create_app
+
+    app = create_app([make_library(tmp_path)], {"units": "asf"}, tmp_path / "out")
+    jobs = app.state.api.jobs
+    with serving(app) as base:
+        target = jobs.output_path("lib/walk.bvh", "stop", "txt")
+        job = jobs.submit("test", [target], stepping_work(100_000, 0.001))
+        wait_state(base, job.id, ("running",))
+    assert job.state == "cancelled" and not job.thread.is_alive()
+    assert not target.exists() and not list(target.parent.glob(".walk.*"))
