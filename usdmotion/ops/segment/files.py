@@ -6,6 +6,7 @@ motion writers), so a failure never leaves a partial file.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 from collections.abc import Sequence
@@ -19,16 +20,62 @@ from usdmotion.io.atomic import atomic_output
 from usdmotion.motion import Motion
 from usdmotion.ops.segment.roles import LIMB_BONES
 from usdmotion.ops.segment.detect import LOW_CONFIDENCE, Segmentation, clip
+from usdmotion.progress import Progress, no_progress
 
 CLIP_FORMATS = ("bvh", "usda", "usdc")
+#: Longest segment label kept in a segments file (characters).
+MAX_LABEL_CHARS = 200
+
+
+def edited(seg: Segmentation, cuts: Sequence[int]) -> Segmentation:
+    """``seg`` with the cuts a person placed: ``cuts`` must be increasing frames in ``1 .. n_frames-1``.
+
+    The detector's per-cut confidence and change regions describe its own cuts, so they are
+    dropped; ``edited`` is set and ``method``/``params`` keep the run the edit started from.
+
+    Raises:
+        ValueError: a cut that is not a whole frame inside the take, or cuts out of order.
+    """
+    values = list(cuts)
+    if not all(isinstance(c, (int, np.integer)) and not isinstance(c, bool) for c in values):
+        raise ValueError("cuts must be whole frame numbers")
+    array = np.asarray(values, dtype=np.int64).reshape(-1)
+    if array.size and (array[0] < 1 or array[-1] > seg.n_frames - 1):
+        raise ValueError(f"cuts must be frames within 1..{seg.n_frames - 1}")
+    if np.any(np.diff(array) <= 0):
+        raise ValueError("cuts must be increasing, at most one per frame")
+    return dataclasses.replace(seg, cuts=array, confidence=None, regions=None, edited=True)
+
+
+def segments_document(seg: Segmentation, source: str | None = None, selected: int | None = None,
+                      labels: Sequence[str] | None = None) -> dict:
+    """The segments JSON (``schemas/segments.schema.json``): ``seg.to_dict()`` with the input
+    ``file``, the ``selected`` segment and one ``label`` per segment (empty labels left out).
+
+    Raises:
+        ValueError: ``labels`` not one single-line string per segment.
+    """
+    doc = {"file": source, **seg.to_dict()}
+    if labels is not None:
+        labels = list(labels)
+        if len(labels) != len(doc["segments"]) or not all(isinstance(x, str) for x in labels):
+            raise ValueError(f"need one label (text) per segment: {len(doc['segments'])} segments, "
+                             f"{len(labels)} labels")
+        for row, label in zip(doc["segments"], labels):
+            label = " ".join(label.split())
+            if len(label) > MAX_LABEL_CHARS:
+                raise ValueError(f"segment {row['index']}: label longer than {MAX_LABEL_CHARS} characters")
+            if label:
+                row["label"] = label
+    if selected is not None:
+        doc["selected"] = selected
+    return doc
 
 
 def write_segments_json(seg: Segmentation, path: str | os.PathLike, source: str | None = None,
-                        selected: int | None = None) -> Path:
-    """Write ``seg.to_dict()`` (plus ``file`` and the ``selected`` segment) as JSON."""
-    doc = {"file": source, **seg.to_dict()}
-    if selected is not None:
-        doc["selected"] = selected
+                        selected: int | None = None, labels: Sequence[str] | None = None) -> Path:
+    """Write :func:`segments_document` as JSON (atomically)."""
+    doc = segments_document(seg, source, selected, labels)
     with atomic_output(path) as tmp:
         tmp.write_text(json.dumps(doc, indent=2) + "\n", encoding="utf-8")
     return Path(path)
@@ -94,8 +141,12 @@ def clip_paths(seg: Segmentation, folder: Path, stem: str, fmt: str, indices: Se
 
 
 def export_clips(motion: Motion, seg: Segmentation, folder: str | os.PathLike, fmt: str = "bvh",
-                 stem: str = "clip", indices: Sequence[int] | None = None) -> list[Path]:
-    """Write one motion file per segment (or per segment in ``indices``); returns the paths."""
+                 stem: str = "clip", indices: Sequence[int] | None = None,
+                 progress: Progress = no_progress) -> list[Path]:
+    """Write one motion file per segment (or per segment in ``indices``); returns the paths.
+
+    ``progress(i, n, "clip …")`` is called before each clip (and ``(n, n, ...)`` at the end).
+    """
     if fmt not in CLIP_FORMATS:
         raise OutputError(f"unknown clip format {fmt!r} (use {', '.join(CLIP_FORMATS)})")
     folder = Path(folder)
@@ -106,6 +157,8 @@ def export_clips(motion: Motion, seg: Segmentation, folder: str | os.PathLike, f
     indices = range(len(seg.bounds())) if indices is None else indices
     paths = clip_paths(seg, folder, stem, fmt, indices)
     bounds = seg.bounds()
-    for i, path in zip(indices, paths):
+    for done, (i, path) in enumerate(zip(indices, paths)):
+        progress(done, len(paths), f"clip {path.name}")
         write_motion(clip(motion, int(bounds[i][0]), int(bounds[i][1])), path)
+    progress(len(paths), len(paths), "clips written")
     return paths
