@@ -97,7 +97,7 @@ def signal(motion, source: str) -> dict:
     filtered = lowpass(q, motion.fps, min(DEFAULT_CUTOFF_HZ, 0.45 * motion.fps))
     return {"fps": motion.fps, "frames": motion.n_frames,
             "q": np.round(np.degrees(q), 3).tolist(), "filtered": np.round(np.degrees(filtered), 3).tolist(),
-            "roles": {r: motion.joint_names[j] for r, j in roles.items()}}
+            "roles": {r: motion.joint_names[j] for r, j in roles.items()}, "job_frames": LONG_TAKE_FRAMES}
 
 
 def detection_answer(seg) -> dict:

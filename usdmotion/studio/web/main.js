@@ -4,6 +4,7 @@ import {getJSON, loadTake} from './api.js';
 import {LibraryView} from './library.js';
 import {Player} from './player.js';
 import {Plots} from './plots.js';
+import {SegmentEditor} from './segment.js';
 
 const $ = id => document.getElementById(id);
 const params = new URLSearchParams(location.search);
@@ -54,12 +55,16 @@ const player = new Player($('canvas'), frame => {
   $('readout').textContent = `frame ${frame} / ${player.frames - 1} · ${t.toFixed(3)} s`;
   $('scrub').value = frame;
   plots.setTime(t);
+  segments.setFrame(frame);
   if (!player.playing) writeUrl();
 });
 player.onStop = () => { $('play').textContent = '▶'; writeUrl(); };
 player.onOrbit = () => { player.cameraMode = 'orbit'; $('camera').value = 'orbit'; };
 player.onCamera = () => { clearTimeout(player.urlTimer); player.urlTimer = setTimeout(writeUrl, 300); };
 const plots = new Plots($('plots'), t => player.setFrame(Math.round(t * player.fps)));
+const segments = new SegmentEditor($('segment-panel'), {player, seek: f => player.setFrame(f),
+  setRange: r => { player.range = state.range = r; showRange(); applyTrace(); writeUrl(); },
+  playToggle: () => $('play').click()});
 const library = new LibraryView($('takes'), $('filter'), $('library-status'), id => openTake(id, true));
 
 async function openTake(id, fresh) {
@@ -95,6 +100,7 @@ async function openTake(id, fresh) {
   player.setCamera(state.cam, state.orbit.length === 6 ? state.orbit : null);
   $('camera').value = state.cam;
   fillJoints();
+  segments.setTake(take);
   player.setFrame(state.frame);
   takeShown();
   $('view-message').textContent = 'body: loading…';
@@ -284,6 +290,6 @@ async function start() {
 }
 
 // for tests and benchmarks: read-only views of the page's state
-window.studio = {player, plots, state, projectJoints: () => player.figure ?
+window.studio = {player, plots, state, segments, projectJoints: () => player.figure ?
   player.figure.take.joint_names.map((_, j) => player.project(player.figure.joint(player.frame, j))) : []};
 start();
