@@ -205,13 +205,13 @@ export class SegmentEditor {
     el.replaceChildren();
     const time = s.q.map((_, i) => i / s.fps);
     this.chart = new uPlot({
-      width: Math.max(300, el.clientWidth - 16), height: 170,
+      width: Math.max(300, el.clientWidth - 16), height: 150,
       cursor: {x: false, y: false, drag: {x: false, y: false}, points: {show: false}},
       scales: {x: {time: false}},
-      axes: [{label: 's'}, {label: 'Q = ‖θ‖ (deg)', size: 60}],
+      axes: [{size: 30}, {label: 'Q = ‖θ‖ (deg)', size: 60}],
       series: [{label: 'time (s)'}, {label: 'Q (deg)', stroke: '#9a9a9a', width: 1},
                {label: 'low-passed Q (deg)', stroke: '#1f5fbf', width: 1.5}],
-      legend: {live: false},
+      legend: {show: false},
       hooks: {drawClear: [u => this.shade(u)], setScale: [() => this.placeHandles()]},
     }, [time, s.q, s.filtered], el);
     const over = this.chart.over;
@@ -351,8 +351,7 @@ export class SegmentEditor {
         placeholder: 'name (e.g. walk)', maxLength: 200});
       name.setAttribute('list', 'seg-labels');
       name.setAttribute('aria-label', `name of segment ${i}`);
-      name.addEventListener('input', () => { this.names[i] = name.value; });
-      name.addEventListener('change', () => this.placeHandles());
+      name.addEventListener('input', () => { this.names[i] = name.value; this.placeHandles(); });
       const button = (text, title, fn) => Object.assign(document.createElement('button'), {textContent: text, title,
                                                                                            onclick: fn});
       const cells = [i, a, b, ((b - a + 1) / this.take.fps).toFixed(2)].map(v =>
@@ -446,7 +445,7 @@ export class SegmentEditor {
       if (e.key === 'z' && (e.ctrlKey || e.metaKey)) { e.preventDefault(); this.undo(); }
     });
     new ResizeObserver(() => {
-      if (this.chart) { this.chart.setSize({width: Math.max(300, $('seg-timeline').clientWidth - 16), height: 170});
+      if (this.chart) { this.chart.setSize({width: Math.max(300, $('seg-timeline').clientWidth - 16), height: 150});
                         this.placeHandles(); }
     }).observe($('seg-timeline'));
     this.showParams();
