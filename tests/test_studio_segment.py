@@ -23,13 +23,13 @@ import pytest
 
 from conftest import shared_path
 from studio_support import REPO, WALK, running_studio
+from test_studio_browser import CHROMIUM, browser, page  # noqa: F401 - fixtures: Debian's Chromium, a page
 from test_studio_jobs import request, wait_state
 from usdmotion.io import read_motion
 from usdmotion.kinematics import joint_positions
 
-CHROMIUM = "/usr/bin/chromium"
-ARGS = ["--use-gl=angle", "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--no-sandbox",
-        "--disable-gpu-sandbox"]
+needs_chromium = pytest.mark.skipif(not Path(CHROMIUM).exists(), reason="Debian's chromium is not installed "
+                                    "(scripts/setup.sh installs it)")
 SHOTS = REPO / "out" / "studio-screenshots"
 TAKE_86 = "86_01_from_amc_cgspeed_layout.bvh"
 ID_86 = f"0/{TAKE_86}"
@@ -103,31 +103,6 @@ def studio_errors(tmp_path_factory):
     (out / "lib").write_text("a file where the studio's folder for this library should go\n")
     with running_studio([lib], out=out) as base:
         yield base, lib, out
-
-
-@pytest.fixture(scope="module")
-def browser():
-    from playwright.sync_api import sync_playwright
-
-    if not Path(CHROMIUM).exists():
-        pytest.skip("Debian's chromium is not installed (scripts/setup.sh installs it)")
-    with sync_playwright() as p:
-        b = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
-        try:
-            yield b
-        finally:
-            b.close()
-
-
-@pytest.fixture
-def page(browser):
-    context = browser.new_context(viewport={"width": 1400, "height": 1000})
-    page = context.new_page()
-    errors = []
-    page.on("pageerror", lambda e: errors.append(str(e)))
-    yield page
-    context.close()
-    assert not errors, errors
 
 
 def open_editor(page, base: str, take_id: str, wait_cuts: bool = True) -> None:
@@ -261,6 +236,7 @@ def test_errors_are_one_line_and_the_server_keeps_running(studio_errors):
 # ---------------------------------------------------------------------------------------- browser
 
 
+@needs_chromium
 def test_edit_save_and_export_in_the_browser(studio86, page):
     """Must-show 1 (segmentation): drag a cut by a known number of frames, add one, delete one, name
     the segments, save; the JSON has those cuts and names, the clips the right frames (FK)."""
@@ -318,6 +294,7 @@ def test_edit_save_and_export_in_the_browser(studio86, page):
             assert not np.allclose(first, src[a + 1], atol=1e-5)  # a frame off would fail
 
 
+@needs_chromium
 def test_cuts_moved_to_the_labels_score_100_percent(studio86, page, capsys):
     """Must-show 2: start from the detector's cuts, move each to its labelled boundary (add and
     delete where needed) in the editor; ``usdmotion segment-eval --cuts`` on the saved file: 100 %."""
@@ -352,6 +329,7 @@ def test_cuts_moved_to_the_labels_score_100_percent(studio86, page, capsys):
           f"({plan.needed} of them out of the labelled region), added {len(plan.added)}, deleted {len(plan.deleted)}")
 
 
+@needs_chromium
 def test_panel_errors_show_one_line_in_the_page(studio_errors, page):
     base, lib, _ = studio_errors
     open_editor(page, base, "0/legs.bvh", wait_cuts=False)
