@@ -98,6 +98,11 @@ def studio_errors(tmp_path_factory):
     (lib / "walk2.bvh").write_bytes(WALK.read_bytes())
     (lib / "walk2.segments.json").write_text(json.dumps({"method": "kcpd", "fps": 120, "frames": 524,
                                                          "cuts": ["200"], "segments": []}))
+    (lib / "walk3.bvh").write_bytes(WALK.read_bytes())
+    from usdmotion.cli import main
+
+    assert main(["segment", str(lib / "walk3.bvh"), "--units", "asf", "--method", "heuristic",
+                 "--out", str(lib / "walk3_segments.json")]) == 0
     out = folder / "out"
     out.mkdir()
     (out / "lib").write_text("a file where the studio's folder for this library should go\n")
@@ -231,6 +236,56 @@ def test_errors_are_one_line_and_the_server_keeps_running(studio_errors):
     assert status == 400 and answer["error"] == "walk.bvh: cuts must be increasing, at most one per frame"
     status, _ = request(base, "GET", "/api/takes")
     assert status == 200
+
+
+def test_a_saved_file_beside_the_take_is_shown(studio_errors):
+    base, lib, _ = studio_errors
+    status, answer = request(base, "GET", "/api/segment/saved?take=0/walk3.bvh")
+    assert status == 200 and answer["output"] == "walk3_segments.json"
+    assert answer["doc"] == json.loads((lib / "walk3_segments.json").read_text())
+    status, answer = request(base, "GET", "/api/segment/saved?take=0/walk.bvh")
+    assert (status, answer) == (200, {"doc": None, "output": None})
+
+
+def test_saves_never_overwrite_and_the_newest_is_shown_with_its_names(studio86):
+    base, _, out = studio86
+    body = {"take": ID_86, "cuts": [549, 1149], "labels": ["warm-up", "jump", "cool-down"]}
+    outputs = []
+    for cuts in ([549, 1149], [600, 1200]):
+        status, answer = request(base, "POST", "/api/segment/save", {**body, "cuts": cuts})
+        assert status == 200, answer
+        outputs.append(answer["output"])
+    assert outputs[1] != outputs[0] and (out.parent / outputs[0]).is_file()
+    assert re.fullmatch(r"out/cmu86/86_01_from_amc_cgspeed_layout\.segments(-\d+)?\.json", outputs[0])
+    status, shown = request(base, "GET", f"/api/segment/saved?take={ID_86}")
+    assert shown["output"] == outputs[1] and shown["doc"]["cuts"] == [600, 1200]
+    status, answer = request(base, "GET", "/api/segment/labels")
+    assert {"walk", "jump", "punch", "leg_kick", "warm-up", "cool-down"} <= set(answer["labels"])
+
+
+def test_a_long_take_is_segmented_as_a_job(studio86, monkeypatch):
+    from usdmotion.studio import segment_panel
+
+    base, root, _ = studio86
+    monkeypatch.setattr(segment_panel, "LONG_TAKE_FRAMES", 1000)
+    status, started = request(base, "POST", "/api/segment/detect", {"take": ID_86, "detector": {"min_length": 2}})
+    assert status == 200 and "job" in started, started
+    job = wait_state(base, started["job"])
+    assert job["state"] == "done" and job["kind"] == "segment"
+    from usdmotion.ops.segment.detect import segment
+
+    assert job["result"]["doc"]["cuts"] == segment(read_motion(root / TAKE_86, units="asf"), min_length_s=2).cuts.tolist()
+
+
+def test_a_cancelled_export_leaves_no_clip_and_no_folder(studio86):
+    base, _, out = studio86
+    cuts = list(range(20, 4579, 20))  # 229 clips: seconds of work, cancelled at once
+    status, started = request(base, "POST", "/api/segment/export", {"take": ID_86, "cuts": cuts, "format": "bvh"})
+    assert status == 200, started
+    status, _ = request(base, "DELETE", f"/api/jobs/{started['job']}")
+    job = wait_state(base, started["job"])
+    assert job["state"] == "cancelled", job
+    assert not (out.parent / started["output"]).exists()
 
 
 # ---------------------------------------------------------------------------------------- browser
