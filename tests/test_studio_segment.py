@@ -303,6 +303,7 @@ def test_edit_save_and_export_in_the_browser(studio86, page):
     page.wait_for_function("document.querySelector('#seg-status').textContent.startsWith('kcpd')")
     detected = detector_cuts(root / TAKE_86).tolist()
     assert page_cuts(page) == detected
+    assert "seg=1" in page.url  # a link opens the editor too
     moved, by = detected[2], 30
     # drag: zoomed to ±1 s around the cut, one frame is ~3 px; the body shows the frame under the pointer
     select_cut(page, moved)

@@ -18,6 +18,7 @@ const state = {
   stick: params.get('stick') !== '0', body: params.get('body') !== '0', grid: params.get('grid') !== '0',
   trace: params.get('trace') === 'com' ? '' : params.get('trace') || '', loop: params.get('loop') !== '0',
   comTrace: params.get('comtrace') === '1' || params.get('trace') === 'com',
+  seg: params.get('seg') === '1',
 };
 let take = null, ghostTake = null, ghostMap = null, series = null, ghostSeries = null;
 const asked = {series: 0, compare: 0};  // only the latest request of each kind may update the page
@@ -47,6 +48,7 @@ function writeUrl() {
   for (const k of ['stick', 'body', 'grid', 'loop']) if (!state[k]) p.set(k, '0');
   if (state.trace) p.set('trace', state.trace);
   if (state.comTrace) p.set('comtrace', '1');
+  if ($('segment-panel').open) p.set('seg', '1');
   history.replaceState(null, '', `?${p}`);
 }
 
@@ -277,6 +279,8 @@ function wire() {
 
 async function start() {
   wire();
+  $('segment-panel').open = state.seg;
+  $('segment-panel').addEventListener('toggle', () => writeUrl());
   await library.load();  // the list of takes, at once
   const opening = state.take ? openTake(state.take, false) : null;
   player.warmUp();  // while the take's arrays are on their way
