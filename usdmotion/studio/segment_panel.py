@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import glob
 import itertools
 import json
 import math
@@ -286,14 +287,16 @@ class SegmentPanel:
         return JSONResponse({"doc": doc, "output": shown})
 
     def saved_path(self, entry) -> Path | None:
+        """The newest ``<stem>.segments*.json`` saved for this take (its ``file`` names it: takes
+        ``jump.bvh`` and ``jump.usda`` share a stem), else one beside the take."""
         stem = Path(entry.name).stem
-        found = []
         if self.api.out is not None:
             name = library_name(self.api.library, self.api.out, entry)
             folder = Path(self.api.out).joinpath(*Path(name).parent.parts)
-            found = sorted(folder.glob(f"{glob_escape(stem)}.segments*.json"), key=lambda p: p.stat().st_mtime_ns)
-        if found:
-            return found[-1]
+            found = sorted(folder.glob(f"{glob.escape(stem)}.segments*.json"), key=lambda p: p.stat().st_mtime_ns)
+            for path in reversed(found):
+                if saved_for(path) in (None, entry.name):
+                    return path
         for name in (f"{stem}.segments.json", f"{stem}_segments.json"):
             beside = entry.path.with_name(name)
             if beside.is_file():
@@ -338,10 +341,13 @@ class SegmentPanel:
         return files
 
 
-def glob_escape(text: str) -> str:
-    import glob
-
-    return glob.escape(text)
+def saved_for(path: Path) -> str | None:
+    """The ``file`` a saved segments document names (``None`` if it names none or cannot be read)."""
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8")) if path.stat().st_size <= MAX_LABEL_FILE_BYTES else None
+    except (OSError, ValueError):
+        return None
+    return doc.get("file") if isinstance(doc, dict) and isinstance(doc.get("file"), str) else None
 
 
 def load_saved(path: Path, motion, shown: str) -> dict:

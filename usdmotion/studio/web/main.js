@@ -87,6 +87,7 @@ async function openTake(id, fresh) {
   } catch (e) {
     $('view-message').textContent = `${id}: ${e.message}`;
     $('view-message').className = 'error-text';
+    segments.setTake(null);
     takeShown();
     return;
   }

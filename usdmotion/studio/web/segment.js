@@ -81,7 +81,7 @@ export class SegmentEditor {
     this.say(`running ${detector.method}…`);
     let answer;
     try {
-      answer = this.take.frames > this.signal.job_frames
+      answer = this.signal && this.take.frames > this.signal.job_frames
         ? await this.jobBar.run('/api/segment/detect', body, 'detector done')
         : await postJSON('/api/segment/detect', body);
     } catch (e) {
