@@ -11,6 +11,8 @@ from pathlib import Path
 from usdmotion.io import read_motion, write_motion
 
 REPO = Path(__file__).resolve().parents[1]
+#: Where the browser tests write their screenshots (the best are committed under docs/studio/).
+SHOTS = REPO / "out" / "studio-screenshots"
 WALK = REPO / "usdmotion" / "data" / "cmu_12_01_walk.bvh"
 #: The second take is the walk from this frame on, turned and moved: DTW must find the
 #: shift and the spatial alignment must undo the turn.
@@ -81,3 +83,14 @@ def raw_get(base: str, target: str) -> tuple[int, bytes]:
         return response.status, response.read()
     finally:
         conn.close()
+
+
+def shoot(page, name: str, frame: int | None = None) -> None:
+    """A screenshot of the view with the open tool panel (a taller window, so both show)."""
+    page.set_viewport_size({"width": 1400, "height": 1350})
+    if frame is not None:
+        page.evaluate(f"() => window.studio.player.setFrame({frame})")
+    page.wait_for_timeout(300)
+    SHOTS.mkdir(parents=True, exist_ok=True)
+    page.screenshot(path=SHOTS / name)
+    page.set_viewport_size({"width": 1400, "height": 900})

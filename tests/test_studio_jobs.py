@@ -189,3 +189,24 @@ def test_cross_site_and_non_json_posts_are_refused(studio):
     assert request(base, "POST", "/api/jobs", body={}, headers={"Origin": "http://evil.example"})[0] == 405
     assert request(base, "DELETE", "/api/jobs/99999")[0] == 404
     assert request(base, "DELETE", "/api/takes")[0] == 405
+
+
+def test_a_full_disk_fails_the_job_with_one_line_and_no_file(studio):
+    """The write runs out of space half-way (ENOSPC from the file system, raised where the
+    writer writes): the job fails with the atomic writer's one line and leaves nothing."""
+    import errno
+    import os
+
+    base, _, out, jobs = studio
+    target = jobs.output_path("lib/walk.bvh", "full", "txt")
+
+    def work(progress, outputs):
+        with atomic_output(outputs[0]) as tmp:
+            tmp.write_text("half of it")
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    job = jobs.submit("test", [target], work)
+    final = wait_state(base, job.id)
+    assert final["state"] == "failed"
+    assert final["error"] == f"usdmotion: error: {target}: cannot write: No space left on device"
+    assert not target.exists() and not list(target.parent.glob(".walk.*"))

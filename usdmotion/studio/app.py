@@ -18,6 +18,7 @@ from starlette.routing import Mount, Route
 from starlette.staticfiles import StaticFiles
 
 from usdmotion.studio import compare, takes
+from usdmotion.studio.errors import StudioError
 from usdmotion.studio.library import Entry, Library, error_line, read_options
 
 WEB = Path(__file__).with_name("web")
@@ -26,14 +27,6 @@ NODE_MODULES = WEB / "node_modules"
 MAX_BODY_BYTES = 64 * 1024
 #: Most ids in one metadata request, joints in one series request.
 MAX_IDS = 200
-
-
-class StudioError(Exception):
-    """An answer other than 200: ``status`` and a one-line message."""
-
-    def __init__(self, status: int, message: str) -> None:
-        super().__init__(message)
-        self.status = status
 
 
 def missing_web_packages() -> list[str]:
@@ -142,7 +135,7 @@ def _compare_params(request: Request, n_frames: int) -> tuple[str, float, int]:
 def create_app(roots: list[Path], options: dict | None = None, out: Path | None = None) -> Starlette:
     """The studio over ``roots``, reading with ``options`` (:func:`usdmotion.io.read_motion`
     keywords); ``out`` is the only folder it may write to (created on first use)."""
-    from usdmotion.studio import edit_panel, jobs, segment_panel
+    from usdmotion.studio import edit_panel, jobs, retarget_panel, segment_panel, video_panel
 
     options = read_options(**(options or {}))
     cache = takes.TakeCache(options)
@@ -156,7 +149,7 @@ def create_app(roots: list[Path], options: dict | None = None, out: Path | None 
         return FileResponse(WEB / "index.html", headers={"Cache-Control": "no-cache"})
 
     routes = [Route("/", index), *api.routes(), *jobs.routes(api.jobs), *edit_panel.routes(api),
-              *segment_panel.routes(api),
+              *retarget_panel.routes(api), *video_panel.routes(api), *segment_panel.routes(api),
               Mount("/app", StaticFiles(directory=WEB, check_dir=False), name="app"),
               Mount("/vendor/three", StaticFiles(directory=NODE_MODULES / "three", check_dir=False), name="three"),
               Mount("/vendor/uplot", StaticFiles(directory=NODE_MODULES / "uplot", check_dir=False), name="uplot")]

@@ -22,13 +22,15 @@ from starlette.responses import JSONResponse, Response
 from starlette.routing import Route
 
 from usdmotion.studio import takes
-from usdmotion.studio.app import MAX_IDS, StudioApi, StudioError
+from usdmotion.studio.errors import StudioError
 from usdmotion.studio.jobs import error_text, json_body, library_name
 
 #: Edited motions kept for the page (positions and plots are fetched after the preview).
 KEEP_PREVIEWS = 6
 #: Most equaliser bands offered (band 0: the highest frequencies).
 MAX_BANDS = 7
+#: Most joints in one plot-series request (as the take's own series).
+MAX_JOINTS = 200
 #: Formats Save as writes (the CLI's writers).
 SAVE_FORMATS = ("bvh", "usda", "usdc")
 
@@ -78,7 +80,7 @@ def time_map(original, edited, operations: list[dict]) -> list[float]:
 class EditPanel:
     """Routes of the edits panel over the Studio's API object (library, take cache, jobs)."""
 
-    def __init__(self, api: StudioApi) -> None:
+    def __init__(self, api) -> None:
         self.api = api
         self._previews: OrderedDict[str, tuple] = OrderedDict()
         self._lock = threading.Lock()
@@ -170,7 +172,7 @@ class EditPanel:
 
     def series(self, request: Request) -> Response:
         kin = self.cached(request, "analysis", takes.analysis)
-        joints = [j for j in request.query_params.get("joints", "").split(",") if j][:MAX_IDS]
+        joints = [j for j in request.query_params.get("joints", "").split(",") if j][:MAX_JOINTS]
         quantities = [q for q in request.query_params.get("q", "bend").split(",") if q]
         bad = [j for j in joints if j not in kin.joint_names] + [q for q in quantities if q not in takes.QUANTITIES]
         if bad:
@@ -202,7 +204,7 @@ class EditPanel:
         return JSONResponse({"job": job.id, "output": jobs.shown(path)})
 
 
-def saved(api: StudioApi, path) -> dict:
+def saved(api, path) -> dict:
     """What a job that wrote ``path`` answers: the path as shown and its library id (the
     output folder is listed as a root, so the new file is in the library)."""
     path = path.resolve()
@@ -212,5 +214,7 @@ def saved(api: StudioApi, path) -> dict:
     return {"output": api.jobs.shown(path), "id": None}
 
 
-def routes(api: StudioApi) -> list[Route]:
+def routes(api) -> list[Route]:
+    """The edits panel's routes over ``api``, the app's :class:`usdmotion.studio.app.StudioApi`
+    (library, take cache, reading options, output folder, ``jobs``)."""
     return EditPanel(api).routes()

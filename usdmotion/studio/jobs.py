@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 
 from usdmotion.progress import Progress
-from usdmotion.studio.app import StudioError
+from usdmotion.studio.errors import StudioError
 
 #: Jobs running at once (more wait, ``queued``); finished jobs kept for the page to read.
 MAX_RUNNING = 2
@@ -219,11 +219,12 @@ def output_path(out: Path, source: str, suffix: str, ext: str, taken=frozenset()
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise StudioError(507, f"cannot write in the output folder {out}: {exc.strerror or exc}") from None
-    for n in itertools.count(1):
-        path = folder / f"{stem}.{suffix}{'' if n == 1 else f'-{n}'}.{ext}"
-        if not path.exists() and path.resolve() not in taken:
-            return path
-    raise AssertionError("unreachable")
+    n = 1
+    path = folder / f"{stem}.{suffix}.{ext}"
+    while path.exists() or path.resolve() in taken:
+        n += 1
+        path = folder / f"{stem}.{suffix}-{n}.{ext}"
+    return path
 
 
 def library_name(library, out: Path | None, entry) -> str:

@@ -32,7 +32,7 @@ from starlette.requests import Request
 from starlette.responses import JSONResponse, Response
 from starlette.routing import Route
 
-from usdmotion.studio.app import StudioApi, StudioError
+from usdmotion.studio.errors import StudioError
 from usdmotion.studio.jobs import error_text, json_body, library_name, output_path
 
 #: A take longer than this is segmented as a job (progress, cancel) rather than in the request.
@@ -131,7 +131,8 @@ def is_label_file(name: str) -> bool:
 class SegmentPanel:
     """Routes of the segmentation editor over the Studio's API object (library, take cache, jobs)."""
 
-    def __init__(self, api: StudioApi) -> None:
+    def __init__(self, api) -> None:
+        """``api``: the app's :class:`~usdmotion.studio.app.StudioApi` (library, take cache, jobs, out)."""
         self.api = api
         self._labels: dict[tuple[str, int], list[str]] = {}
         self._lock = threading.Lock()
@@ -364,5 +365,5 @@ def load_saved(path: Path, motion, shown: str) -> dict:
     return doc
 
 
-def routes(api: StudioApi) -> list[Route]:
+def routes(api) -> list[Route]:
     return SegmentPanel(api).routes()

@@ -4,6 +4,9 @@ import {getJSON, loadTake} from './api.js';
 import {LibraryView} from './library.js';
 import {Player} from './player.js';
 import {Plots} from './plots.js';
+import {mountEdits} from './edits.js';
+import {mountRetarget} from './retarget.js';
+import {mountVideo} from './video.js';
 import {SegmentEditor} from './segment.js';
 
 const $ = id => document.getElementById(id);
@@ -66,8 +69,14 @@ player.onCamera = () => { clearTimeout(player.urlTimer); player.urlTimer = setTi
 const plots = new Plots($('plots'), t => player.setFrame(Math.round(t * player.fps)));
 const segments = new SegmentEditor($('segment-panel'), {player, seek: f => player.setFrame(f),
   setRange: r => { player.range = state.range = r; showRange(); applyTrace(); writeUrl(); },
-  playToggle: () => $('play').click()});
+  playToggle: () => $('play').click(), refreshLibrary: () => tools.refreshLibrary()});
 const library = new LibraryView($('takes'), $('filter'), $('library-status'), id => openTake(id, true));
+// the tool panels (edits, retarget, video) see the page through these few hooks
+const tools = {player, plots, take: () => take, state, reopen: () => openTake(state.take, false),
+  plotQuery: () => ({joints: state.joints.join(','), q: state.q.join(',')}),
+  refreshLibrary: async () => { await library.load(); await library.fill(); fillTakeLists(); }};
+const edits = mountEdits(tools), retargeting = mountRetarget(tools);
+mountVideo(tools);
 
 async function openTake(id, fresh) {
   player.openedAt = performance.now();
@@ -105,6 +114,8 @@ async function openTake(id, fresh) {
   fillJoints();
   segments.setTake(take);
   player.setFrame(state.frame);
+  edits.opened(take);
+  retargeting.opened(take);
   takeShown();
   $('view-message').textContent = 'body: loading…';
   await Promise.all([loadSeries(), take.comLoaded.then(applyTrace),
@@ -278,6 +289,14 @@ function wire() {
   $('align-mode').value = state.align; $('offset').value = state.offset; $('align-space').value = state.space;
 }
 
+function fillTakeLists() {
+  const options = library.readable().map(t => new Option(t.name, t.id));
+  $('compare').replaceChildren(new Option('—', ''), ...options.map(o => o.cloneNode(true)));
+  $('compare').value = state.compare;
+  edits.libraryFilled(options);
+  retargeting.libraryFilled(options);
+}
+
 async function start() {
   wire();
   $('segment-panel').open = state.seg;
@@ -287,9 +306,7 @@ async function start() {
   player.warmUp();  // while the take's arrays are on their way
   if (opening) await Promise.race([shown, opening]);  // a linked take is drawn before the library is read
   await library.fill();
-  const options = library.readable().map(t => new Option(t.name, t.id));
-  $('compare').replaceChildren(new Option('—', ''), ...options);
-  $('compare').value = state.compare;
+  fillTakeLists();
   await opening;
   document.body.dataset.loaded = '1';
 }

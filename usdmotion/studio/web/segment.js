@@ -11,7 +11,8 @@ const $ = id => document.getElementById(id);
 const PARAMS = {kcpd: ['penalty', 'min_length', 'refine'], heuristic: ['param', 'cutoff']};
 
 export class SegmentEditor {
-  /** hooks from main.js: {player, seek(frame), setRange([first, last] | null), playToggle()}. */
+  /** hooks from main.js: {player, seek(frame), setRange([first, last] | null), playToggle(),
+   *  refreshLibrary()}. */
   constructor(panel, hooks) {
     Object.assign(this, hooks);
     this.panel = panel;
@@ -403,6 +404,7 @@ export class SegmentEditor {
     if (result) {
       $('seg-output').textContent = `clips in ${result.folder}`;
       $('seg-output').dataset.output = result.folder;
+      this.refreshLibrary();  // the clips are takes of the output folder's root
     }
   }
 
