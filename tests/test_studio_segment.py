@@ -316,6 +316,11 @@ def test_edit_save_and_export_in_the_browser(studio86, page):
     page.mouse.move(x1, y, steps=4)
     assert page.evaluate("window.studio.player.figure.frame") == moved + by
     page.mouse.up()
+    assert page.input_value("#seg-cut-frame") == str(moved + by)
+    for key in [".", ".", ","]:  # nudge: one frame each
+        page.keyboard.press(key)
+    by += 1
+    assert page.input_value("#seg-cut-frame") == str(moved + by)
     page.click("#seg-zoom-all")
     added, deleted = 3700, detected[4]
     add_cut(page, added)

@@ -34,7 +34,7 @@ export class SegmentEditor {
   /** A take was opened: if the panel is open, show its saved segments or the detector's cuts. */
   setTake(take) {
     this.take = take;
-    this.cuts = []; this.names = ['']; this.selected = -1; this.undoStack = [];
+    this.cuts = []; this.names = ['']; this.selected = -1; this.undoStack = []; this.candidates = [];
     this.signal = null;
     if (this.chart) { this.chart.destroy(); this.chart = null; }
     $('seg-timeline').replaceChildren();
@@ -93,6 +93,7 @@ export class SegmentEditor {
     this.remember();
     this.detector = detector;
     this.details = new Map((answer.doc.cut_details || []).map(d => [d.frame, d]));
+    this.candidates = answer.candidates;
     this.setCuts(answer.doc.cuts, answer.doc.cuts.map(() => '').concat(['']));
     const low = [...this.details.values()].filter(d => d.low_confidence).length;
     this.say(`${detector.method}: ${answer.doc.cuts.length} cuts` + (low ? `, ${low} of low confidence (dotted): check them` : ''));
@@ -224,7 +225,8 @@ export class SegmentEditor {
     this.setFrame(this.player.frame);
   }
 
-  /** Alternate segments shaded, the selected cut's two segments tinted (canvas, under the curves). */
+  /** Alternate segments shaded (canvas, under the curves); the paper's swing candidates as green
+   *  ticks at the bottom (places a person may want to cut, ALGORITHMS.md §3). */
   shade(u) {
     if (!this.take) return;
     const ctx = u.ctx, top = u.bbox.top, h = u.bbox.height;
@@ -233,6 +235,11 @@ export class SegmentEditor {
       ctx.fillStyle = i % 2 ? 'rgba(0,0,0,0.05)' : 'rgba(0,0,0,0)';
       ctx.fillRect(x0, top, x1 - x0, h);
     });
+    ctx.fillStyle = '#2a9d3a';
+    for (const c of this.candidates || []) {
+      const x = u.valToPos(c / this.take.fps, 'x', true);
+      if (x >= u.bbox.left && x <= u.bbox.left + u.bbox.width) ctx.fillRect(x - 1, top + h - 8, 2, 8);
+    }
   }
 
   xOfFrame(f) { return this.chart.valToPos(f / this.take.fps, 'x'); }
@@ -445,6 +452,13 @@ export class SegmentEditor {
       if (!this.panel.open || e.target.tagName === 'INPUT' || e.target.tagName === 'SELECT') return;
       if ((e.key === 'Delete' || e.key === 'Backspace') && this.selected >= 0) { e.preventDefault(); this.remove(this.selected); }
       if (e.key === 'z' && (e.ctrlKey || e.metaKey)) { e.preventDefault(); this.undo(); }
+      if ((e.key === ',' || e.key === '.' || e.key === '<' || e.key === '>') && this.selected >= 0) {
+        e.preventDefault();  // nudge the selected cut a frame (with shift: ten)
+        const step = (e.key === ',' || e.key === '<' ? -1 : 1) * (e.shiftKey ? 10 : 1);
+        const f = this.move(this.selected, this.cuts[this.selected] + step);
+        this.changed();
+        this.seek(f);
+      }
     });
     new ResizeObserver(() => {
       if (this.chart) { this.chart.setSize({width: Math.max(300, $('seg-timeline').clientWidth - 16), height: 150});
