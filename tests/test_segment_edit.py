@@ -71,4 +71,5 @@ def test_segment_eval_scores_a_saved_file(walk_seg, tmp_path, capsys):
     (tmp_path / "other.json").write_text(json.dumps(other))
     assert main(["segment-eval", str(WALK), str(labels), "--units", "asf", "--cuts", str(tmp_path / "other.json")]) == 2
     err = capsys.readouterr().err.strip().splitlines()[-1]
-    assert err == f"usdmotion: error: {tmp_path / 'other.json'}: segments of a 600-frame take, the motion has 524 frames"
+    assert err == (f"usdmotion: error: {tmp_path / 'other.json'}: segments of a 600-frame take, the motion has "
+                   "524 frames")

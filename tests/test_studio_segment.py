@@ -230,7 +230,8 @@ def test_errors_are_one_line_and_the_server_keeps_running(studio_errors):
         assert status == 400 and word in answer["error"] and "\n" not in answer["error"], (detector, answer)
     status, answer = request(base, "GET", "/api/segment/saved?take=0/walk2.bvh")
     assert status == 422 and answer["error"].startswith("usdmotion: error: walk2.segments.json: /"), answer
-    status, answer = request(base, "POST", "/api/segment/save", {"take": "0/walk.bvh", "cuts": [200], "labels": ["a", "b"]})
+    status, answer = request(base, "POST", "/api/segment/save",
+                             {"take": "0/walk.bvh", "cuts": [200], "labels": ["a", "b"]})
     assert status == 507 and "cannot write in the output folder" in answer["error"], answer
     status, answer = request(base, "POST", "/api/segment/save", {"take": "0/walk.bvh", "cuts": [300, 200]})
     assert status == 400 and answer["error"] == "walk.bvh: cuts must be increasing, at most one per frame"
@@ -274,7 +275,8 @@ def test_a_long_take_is_segmented_as_a_job(studio86, monkeypatch):
     assert job["state"] == "done" and job["kind"] == "segment"
     from usdmotion.ops.segment.detect import segment
 
-    assert job["result"]["doc"]["cuts"] == segment(read_motion(root / TAKE_86, units="asf"), min_length_s=2).cuts.tolist()
+    expected = segment(read_motion(root / TAKE_86, units="asf"), min_length_s=2).cuts
+    assert job["result"]["doc"]["cuts"] == expected.tolist()
 
 
 def test_a_cancelled_export_leaves_no_clip_and_no_folder(studio86):

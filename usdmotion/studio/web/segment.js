@@ -96,7 +96,8 @@ export class SegmentEditor {
     this.candidates = answer.candidates;
     this.setCuts(answer.doc.cuts, answer.doc.cuts.map(() => '').concat(['']));
     const low = [...this.details.values()].filter(d => d.low_confidence).length;
-    this.say(`${detector.method}: ${answer.doc.cuts.length} cuts` + (low ? `, ${low} of low confidence (dotted): check them` : ''));
+    this.say(`${detector.method}: ${answer.doc.cuts.length} cuts` +
+             (low ? `, ${low} of low confidence (dotted): check them` : ''));
   }
 
   /** Show a saved segments document (its detector options go into the form). */
@@ -264,7 +265,8 @@ export class SegmentEditor {
     });
     this.bounds().forEach(([a, b], i) => {
       if (!this.names[i]) return;
-      const n = document.createElement('div'), x0 = Math.max(0, this.xOfFrame(a)), x1 = Math.min(width, this.xOfFrame(b));
+      const n = document.createElement('div');
+      const x0 = Math.max(0, this.xOfFrame(a)), x1 = Math.min(width, this.xOfFrame(b));
       if (x1 - x0 < 20) return;
       n.className = 'seg-name'; n.textContent = this.names[i];
       n.style.left = `${x0 + 3}px`; n.style.maxWidth = `${x1 - x0 - 6}px`;
@@ -450,7 +452,10 @@ export class SegmentEditor {
     $('seg-export').onclick = () => this.exportClips();
     window.addEventListener('keydown', e => {
       if (!this.panel.open || e.target.tagName === 'INPUT' || e.target.tagName === 'SELECT') return;
-      if ((e.key === 'Delete' || e.key === 'Backspace') && this.selected >= 0) { e.preventDefault(); this.remove(this.selected); }
+      if ((e.key === 'Delete' || e.key === 'Backspace') && this.selected >= 0) {
+        e.preventDefault();
+        this.remove(this.selected);
+      }
       if (e.key === 'z' && (e.ctrlKey || e.metaKey)) { e.preventDefault(); this.undo(); }
       if ((e.key === ',' || e.key === '.' || e.key === '<' || e.key === '>') && this.selected >= 0) {
         e.preventDefault();  // nudge the selected cut a frame (with shift: ten)
