@@ -338,6 +338,13 @@ def test_edit_save_and_export_in_the_browser(studio86, page):
     assert load_document(path, "segments") == doc
     assert doc["cuts"] == cuts and [s["label"] for s in doc["segments"]] == names and doc["edited"] is True
     assert doc["method"] == "kcpd" and doc["frames"] == 4579
+    # opening the take again (a link with seg=1) shows the saved segments, names and all
+    page.goto(page.url)
+    page.wait_for_function("document.querySelector('#seg-status').textContent.startsWith('showing the saved')",
+                           timeout=60_000)
+    assert page.inner_text("#seg-status") == f"showing the saved segments {path.relative_to(out.parent).as_posix()}"
+    assert page_cuts(page) == cuts
+    assert page.locator("#seg-table .seg-label").evaluate_all("xs => xs.map(x => x.value)") == names
     # export: a job with progress; clips of the saved cuts, first frame = the source's frame (FK)
     page.select_option("#seg-format", "usda")
     page.click("#seg-export")
