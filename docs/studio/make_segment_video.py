@@ -88,12 +88,11 @@ def session(page, base: str, record) -> None:
     page.click("#seg-save")
     page.wait_for_function("document.querySelector('#seg-output').textContent.startsWith('saved')")
     time.sleep(1.5)
+    page.screenshot(path=OUT / "segment_editor.png")
     page.click("#seg-export")
     page.wait_for_function("document.querySelector('#seg-output').textContent.startsWith('clips in')",
                            timeout=120_000)
-    time.sleep(1.0)
-    page.screenshot(path=OUT / "segment_editor.png")
-    time.sleep(1.0)
+    time.sleep(2.0)
 
 
 class Screencast:
