@@ -306,6 +306,11 @@ def test_edit_save_and_export_in_the_browser(studio86, page):
     detected = detector_cuts(root / TAKE_86).tolist()
     assert page_cuts(page) == detected
     assert "seg=1" in page.url  # a link opens the editor too
+    from usdmotion.ops.segment.detect import segment
+
+    confidence = segment(read_motion(root / TAKE_86, units="asf")).confidence
+    shown = page.locator("#seg-table tbody tr td:nth-child(5)").all_inner_texts()
+    assert shown == [""] + [f"{c:.2f}{' check' if c < 0.5 else ''}" for c in confidence]
     moved, by = detected[2], 30
     # drag: zoomed to ±1 s around the cut, one frame is ~3 px; the body shows the frame under the pointer
     select_cut(page, moved)

@@ -364,7 +364,9 @@ export class SegmentEditor {
       name.addEventListener('input', () => { this.names[i] = name.value; this.placeHandles(); });
       const button = (text, title, fn) => Object.assign(document.createElement('button'), {textContent: text, title,
                                                                                            onclick: fn});
-      const cells = [i, a, b, ((b - a + 1) / this.take.fps).toFixed(2)].map(v =>
+      const d = i > 0 && this.details ? this.details.get(a) : null;  // the detector's word on the cut at a
+      const cells = [i, a, b, ((b - a + 1) / this.take.fps).toFixed(2),
+                     d ? `${d.confidence.toFixed(2)}${d.low_confidence ? ' check' : ''}` : ''].map(v =>
         Object.assign(document.createElement('td'), {textContent: v}));
       const td = c => { const t = document.createElement('td'); t.append(c); return t; };
       tr.append(...cells, td(name),
