@@ -94,3 +94,21 @@ def shoot(page, name: str, frame: int | None = None) -> None:
     SHOTS.mkdir(parents=True, exist_ok=True)
     page.screenshot(path=SHOTS / name)
     page.set_viewport_size({"width": 1400, "height": 900})
+
+
+@contextlib.contextmanager
+def studio_with_output(folder: Path, prepare=None):
+    """A studio over :func:`make_library` in ``folder`` writing to ``folder/out`` (the tools'
+    tests); ``prepare(lib)`` adds takes first. Yields ``(base URL, lib, out)``; skips when the
+    web packages are not installed."""
+    import pytest
+
+    from usdmotion.studio.app import missing_web_packages
+
+    if missing_web_packages():
+        pytest.skip(f"studio web packages missing ({missing_web_packages()}): run scripts/setup.sh")
+    lib = make_library(folder)
+    if prepare is not None:
+        prepare(lib)
+    with running_studio([lib], out=folder / "out") as base:
+        yield base, lib, folder / "out"

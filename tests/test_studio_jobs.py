@@ -210,3 +210,38 @@ def test_a_full_disk_fails_the_job_with_one_line_and_no_file(studio):
     assert final["state"] == "failed"
     assert final["error"] == f"usdmotion: error: {target}: cannot write: No space left on device"
     assert not target.exists() and not list(target.parent.glob(".walk.*"))
+
+
+def test_saved_takes_are_listed_and_an_edit_of_one_is_written_beside_it(tmp_path):
+    """The output folder is a root of the library (or inside one: the default ``out/studio``
+    under the current folder); a take in it keeps its place there."""
+    from usdmotion.studio.app import create_app
+    from usdmotion.studio.jobs import library_name
+
+    lib = make_library(tmp_path)
+    for out in (tmp_path / "out", lib / "out" / "studio"):
+        app = create_app([lib], {"units": "asf"}, out)
+        api = app.state.api
+        walk = api.library.resolve("0/walk.bvh")
+        first = api.jobs.output_path(library_name(api.library, out, walk), "edit", "bvh")
+        assert first == out / "lib" / "walk.edit.bvh"
+        first.write_bytes((lib / "walk.bvh").read_bytes())
+        (out / "cache" / "glb").mkdir(parents=True)
+        (out / "cache" / "glb" / "body.glb").write_bytes(b"glTF")  # the body cache is never listed
+        listed = {e.path: e for e in api.library.scan()}
+        assert first in listed and not [p for p in listed if p.suffix == ".glb"]
+        again = api.jobs.output_path(library_name(api.library, out, listed[first]), "edit", "bvh")
+        assert again == out / "lib" / "walk.edit.edit.bvh"
+
+
+def test_stopping_the_server_cancels_running_jobs_and_leaves_no_file(tmp_path):
+    from usdmotion.studio.app import create_app
+
+    app = create_app([make_library(tmp_path)], {"units": "asf"}, tmp_path / "out")
+    jobs = app.state.api.jobs
+    with serving(app) as base:
+        target = jobs.output_path("lib/walk.bvh", "stop", "txt")
+        job = jobs.submit("test", [target], stepping_work(100_000, 0.001))
+        wait_state(base, job.id, ("running",))
+    assert job.state == "cancelled" and not job.thread.is_alive()
+    assert not target.exists() and not list(target.parent.glob(".walk.*"))

@@ -7,14 +7,16 @@ from __future__ import annotations
 
 import json
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
-from studio_support import make_library, running_studio, shoot
-from test_studio_browser import ARGS, CHROMIUM, SHOTS, WALK_ID, browser, open_view, page  # noqa: F401 - fixtures
+from studio_support import shoot, studio_with_output
+from test_studio_browser import CHROMIUM, WALK_ID, browser, open_view, page  # noqa: F401 - fixtures
 from usdmotion.io import read_motion, write_motion
 
-pytestmark = pytest.mark.skipif(not __import__("pathlib").Path(CHROMIUM).exists(),
+pytestmark = pytest.mark.skipif(not Path(CHROMIUM).exists(),
                                 reason="Debian's chromium is not installed (scripts/setup.sh installs it)")
 
 #: The 18-joint rig of docs/retarget.md's example: the walk's skeleton without these joints.
@@ -22,21 +24,19 @@ REMOVE = "LHipJoint,RHipJoint,LowerBack,Spine1,Neck,LeftShoulder,RightShoulder,L
          "LeftHandIndex1,RightHandIndex1,LThumb,RThumb"
 
 
-@pytest.fixture(scope="module")
-def studio(tmp_path_factory):
-    from usdmotion.studio.app import missing_web_packages
-
-    if missing_web_packages():
-        pytest.skip(f"studio web packages missing ({missing_web_packages()}): run scripts/setup.sh")
-    folder = tmp_path_factory.mktemp("retarget")
-    lib = make_library(folder)
-    # a rig no joint of the walk maps to (names with nothing in common, no profile)
-    walk = read_motion(lib / "walk.bvh", units="asf")
+def add_alien_rig(lib) -> None:
+    """A rig no joint of the walk maps to (names with nothing in common, no rig profile)."""
     import dataclasses
+
+    walk = read_motion(lib / "walk.bvh", units="asf")
     alien = dataclasses.replace(walk, joint_names=tuple(f"Bone{j:02d}" for j in range(walk.n_joints)))
     write_motion(alien.sliced(0, 2), lib / "alien_rig.bvh")
-    with running_studio([lib], out=folder / "out") as base:
-        yield base, lib, folder / "out"
+
+
+@pytest.fixture(scope="module")
+def studio(tmp_path_factory):
+    with studio_with_output(tmp_path_factory.mktemp("retarget"), add_alien_rig) as served:
+        yield served
 
 
 def test_retarget_in_the_browser_matches_the_cli(studio, page, tmp_path):
@@ -58,6 +58,11 @@ def test_retarget_in_the_browser_matches_the_cli(studio, page, tmp_path):
     assert page.evaluate("() => window.studio.player.figure.take.end_sites.filter(e => !e).length") == 18
     assert page.evaluate("() => window.studio.player.ghost.take.id") == WALK_ID
     table = [row.split("\t") for row in page.locator("#rt-errors tbody tr").all_inner_texts()]
+    # the target's joints are coloured by their error: the worst red, the best green
+    colours = page.evaluate("""names => names.map(n => { const f = window.studio.player.figure, c = f.joints.instanceColor;
+        const j = f.take.joint_names.indexOf(n); return [c.getX(j), c.getY(j), c.getZ(j)]; })""",
+                            [table[0][0], table[-1][0]])
+    assert colours[0][0] > colours[0][1] and colours[1][1] > colours[1][0]
     shoot(page, "retarget.png", frame=200)
     page.select_option("#rt-format", "usda")
     page.click("#rt-save")
@@ -100,3 +105,36 @@ def test_a_rig_that_cannot_be_mapped_shows_one_line(studio, page):
     assert "\n" not in text
     assert page.evaluate("async () => (await fetch('/api/takes')).status") == 200
     assert written() == before  # nothing written
+
+
+def test_joint_map_through_rig_profiles(studio, page):
+    """A joint map through two rig profiles: a target that does not fit its profile shows the
+    map reader's one line; one that fits shows the map that ``prepare`` makes from the same map
+    document (the JSON ``usdmotion retarget --map`` would read)."""
+    from usdmotion.ops.retarget import prepare
+    from usdmotion.ops.retarget.jointmap import joint_map_from_document
+
+    base, lib, _ = studio
+    open_view(page, base, f"take={WALK_ID}")
+    page.click("#retarget-panel summary")
+    page.select_option("#rt-target", "0/alien_rig.bvh")
+    page.select_option("#rt-source-profile", "cmu_cgspeed")
+    page.select_option("#rt-target-profile", "mixamo")
+    page.click("#rt-show-map")
+    page.wait_for_selector("#retarget-panel[data-state=error]", timeout=30_000)
+    text = page.inner_text("#retarget-status")
+    assert text == "usdmotion: error: <input>: the target skeleton does not fit rig profile 'mixamo'"
+    page.select_option("#rt-target", "0/session2/walk_turned.usda")
+    page.select_option("#rt-target-profile", "cmu_cgspeed")
+    page.click("#rt-show-map")
+    page.wait_for_selector("#retarget-panel[data-state=mapped]", timeout=30_000)
+    walk = read_motion(lib / "walk.bvh", units="asf")
+    turned = read_motion(lib / "session2" / "walk_turned.usda")
+    doc = {"source_profile": "cmu_cgspeed", "target_profile": "cmu_cgspeed", "auto": True}
+    setup = prepare(walk, turned, joint_map=joint_map_from_document(doc))
+    shown = [row.split("\t") for row in page.locator("#rt-map tbody tr").all_inner_texts()]
+    expected = [[t, s or "— not mapped"] for t, s, e in
+                zip(turned.joint_names, (setup.joint_map.pairs.get(n) for n in turned.joint_names), turned.end_sites)
+                if not e]
+    assert shown == expected
+    assert "rig profiles cmu_cgspeed -> cmu_cgspeed" in page.inner_text("#retarget-status")

@@ -6,26 +6,22 @@ from __future__ import annotations
 
 import io
 import math
+from pathlib import Path
 
+import numpy as np
 import pytest
 
-from studio_support import make_library, running_studio, shoot
-from test_studio_browser import ARGS, CHROMIUM, SHOTS, TURNED_ID, WALK_ID, browser, open_view, page  # noqa: F401
+from studio_support import shoot, studio_with_output
+from test_studio_browser import CHROMIUM, TURNED_ID, WALK_ID, browser, open_view, page  # noqa: F401
 
-pytestmark = pytest.mark.skipif(not __import__("pathlib").Path(CHROMIUM).exists(),
+pytestmark = pytest.mark.skipif(not Path(CHROMIUM).exists(),
                                 reason="Debian's chromium is not installed (scripts/setup.sh installs it)")
 
 
 @pytest.fixture(scope="module")
 def studio(tmp_path_factory):
-    from usdmotion.studio.app import missing_web_packages
-
-    if missing_web_packages():
-        pytest.skip(f"studio web packages missing ({missing_web_packages()}): run scripts/setup.sh")
-    folder = tmp_path_factory.mktemp("video")
-    lib = make_library(folder)
-    with running_studio([lib], out=folder / "out") as base:
-        yield base, lib, folder / "out"
+    with studio_with_output(tmp_path_factory.mktemp("video")) as served:
+        yield served
 
 
 def test_render_the_view_to_mp4_and_download_it(studio, page):
@@ -73,3 +69,21 @@ def test_cancel_a_render_from_the_page_leaves_no_file(studio, page):
     page.wait_for_selector("#video-bar .job-bar[data-state=cancelled]", timeout=30_000)
     assert "cancelled; no file was kept" in page.inner_text("#video-bar")
     assert not [p for p in out.rglob("*walk_turned*") if "cache" not in p.parts]  # no video, no temporary file
+
+
+@pytest.mark.parametrize("offset", [0.5, -0.25, 0.0])
+def test_a_manual_offset_renders_the_ghost_the_page_shows(offset):
+    """The video's ghost frames (the renderer's plan) are the player's ghost frames for the
+    same manual offset (the studio's compare.offset_frame_map), frame by frame."""
+    from studio_support import SHIFT, WALK
+    from usdmotion.io import read_motion
+    from usdmotion.render import plan_render
+    from usdmotion.studio.compare import offset_frame_map
+    from usdmotion.studio.video_panel import render_options
+
+    walk = read_motion(WALK, units="asf")
+    other = walk.sliced(SHIFT, None)
+    options = render_options({"align": "offset", "offset": offset, "size": "640x360"}, walk, other)
+    plan = plan_render(walk, options, other)
+    shown = offset_frame_map(walk, other, offset)[plan.frames]
+    np.testing.assert_allclose(plan.other_frames, shown, atol=0.5 + 1e-9)

@@ -91,12 +91,7 @@ class StudioApi:
 
     def series(self, request: Request) -> Response:
         kin = self.compute(self.take(request), "analysis", takes.analysis)
-        joints = [j for j in request.query_params.get("joints", "").split(",") if j][:MAX_IDS]
-        quantities = [q for q in request.query_params.get("q", "bend,speed,com_height,com_speed").split(",") if q]
-        bad = [j for j in joints if j not in kin.joint_names] + [q for q in quantities if q not in takes.QUANTITIES]
-        if bad:
-            raise StudioError(400, f"unknown joint or quantity {bad[0]!r}")
-        return JSONResponse(takes.series(kin, joints, quantities))
+        return JSONResponse(takes.series_query(kin, request.query_params, MAX_IDS))
 
     def glb(self, request: Request) -> Response:
         from usdmotion.io.gltf import glb_bytes
@@ -153,10 +148,24 @@ def create_app(roots: list[Path], options: dict | None = None, out: Path | None 
               Mount("/app", StaticFiles(directory=WEB, check_dir=False), name="app"),
               Mount("/vendor/three", StaticFiles(directory=NODE_MODULES / "three", check_dir=False), name="three"),
               Mount("/vendor/uplot", StaticFiles(directory=NODE_MODULES / "uplot", check_dir=False), name="uplot")]
-    app = Starlette(routes=routes, exception_handlers={StudioError: _error_response})
+    app = Starlette(routes=routes, exception_handlers={StudioError: _error_response}, lifespan=_stops_jobs(api.jobs))
     app.add_middleware(_Guard)
     app.state.api = api
     return app
+
+
+def _stops_jobs(jobs):
+    """The app's lifespan: when the server stops, running jobs are cancelled and waited for."""
+    import contextlib
+
+    from starlette.concurrency import run_in_threadpool
+
+    @contextlib.asynccontextmanager
+    async def lifespan(app):
+        yield
+        await run_in_threadpool(jobs.shutdown)
+
+    return lifespan
 
 
 def _inside_any(path: Path, roots: list[Path]) -> bool:

@@ -12,8 +12,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import threading
-from collections import OrderedDict
 
 import numpy as np
 from starlette.concurrency import run_in_threadpool
@@ -23,14 +21,12 @@ from starlette.routing import Route
 
 from usdmotion.studio import takes
 from usdmotion.studio.errors import StudioError
-from usdmotion.studio.jobs import error_text, json_body, library_name
+from usdmotion.studio.jobs import Kept, error_text, json_body, library_name
 
 #: Edited motions kept for the page (positions and plots are fetched after the preview).
 KEEP_PREVIEWS = 6
 #: Most equaliser bands offered (band 0: the highest frequencies).
 MAX_BANDS = 7
-#: Most joints in one plot-series request (as the take's own series).
-MAX_JOINTS = 200
 #: Formats Save as writes (the CLI's writers).
 SAVE_FORMATS = ("bvh", "usda", "usdc")
 
@@ -82,8 +78,7 @@ class EditPanel:
 
     def __init__(self, api) -> None:
         self.api = api
-        self._previews: OrderedDict[str, tuple] = OrderedDict()
-        self._lock = threading.Lock()
+        self._previews = Kept(KEEP_PREVIEWS)
 
     def routes(self) -> list[Route]:
         return [Route("/api/edit/groups", self.groups), Route("/api/edit/preview", self.preview, methods=["POST"]),
@@ -144,18 +139,13 @@ class EditPanel:
 
         def compute() -> dict:
             original, edited = self.run(entry, ops, others)
-            with self._lock:
-                self._previews[key] = (edited, {})
-                self._previews.move_to_end(key)
-                while len(self._previews) > KEEP_PREVIEWS:
-                    self._previews.popitem(last=False)
+            self._previews.put(key, (edited, {"entry": entry}))
             return {"key": key, **takes.skeleton(edited), "map": time_map(original, edited, ops)}
 
         return JSONResponse(await run_in_threadpool(compute))
 
     def edited(self, request: Request):
-        with self._lock:
-            found = self._previews.get(request.query_params.get("key", ""))
+        found = self._previews.get(request.query_params.get("key", ""))
         if found is None:
             raise StudioError(404, "this preview is no longer kept: edit again")
         return found
@@ -167,17 +157,16 @@ class EditPanel:
         return values[what]
 
     def positions(self, request: Request) -> Response:
-        return Response(self.cached(request, "positions", takes.view_positions).tobytes(),
-                        media_type="application/octet-stream")
+        entry = self.edited(request)[1]["entry"]
+        original = self.api.compute(entry, "motion", None)
+        original_view = self.api.compute(entry, "positions", takes.view_positions)
+        positions = self.cached(request, "positions",
+                                lambda edited: takes.edited_view_positions(original, original_view, edited))
+        return Response(positions.tobytes(), media_type="application/octet-stream")
 
     def series(self, request: Request) -> Response:
         kin = self.cached(request, "analysis", takes.analysis)
-        joints = [j for j in request.query_params.get("joints", "").split(",") if j][:MAX_JOINTS]
-        quantities = [q for q in request.query_params.get("q", "bend").split(",") if q]
-        bad = [j for j in joints if j not in kin.joint_names] + [q for q in quantities if q not in takes.QUANTITIES]
-        if bad:
-            raise StudioError(400, f"unknown joint or quantity {bad[0]!r}")
-        return JSONResponse(takes.series(kin, joints, quantities))
+        return JSONResponse(takes.series_query(kin, request.query_params))
 
     async def save(self, request: Request) -> Response:
         """Save as: a job writing ``<stem>.edit.<format>`` in the output folder; its result

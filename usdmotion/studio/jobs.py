@@ -67,6 +67,7 @@ class Job:
     created: float = field(default_factory=time.time)
     cancelled: threading.Event = field(default_factory=threading.Event)
     existed: list[bool] = field(default_factory=list)
+    thread: threading.Thread | None = None
 
     def progress(self, current: float, total: float | None, message: str = "") -> None:
         """The job's :class:`~usdmotion.progress.Progress`: records the report; raises
@@ -119,9 +120,9 @@ class Jobs:
             job = Job(next(self._ids), kind, outputs, existed=[p.exists() for p in outputs])
             self._jobs[job.id] = job
             self._forget_old()
-        thread = threading.Thread(target=self._run, args=(job, work, names or {}), name=f"studio-job-{job.id}",
-                                  daemon=True)
-        thread.start()
+        job.thread = threading.Thread(target=self._run, args=(job, work, names or {}), name=f"studio-job-{job.id}",
+                                      daemon=True)
+        job.thread.start()
         return job
 
     def get(self, job_id: int) -> Job:
@@ -151,6 +152,17 @@ class Jobs:
         with self._lock:
             taken = {p for job in self._jobs.values() if job.active for p in job.outputs}
         return output_path(self.out, source, suffix, ext, taken)
+
+    def shutdown(self, timeout_s: float = 20.0) -> None:
+        """Cancel every queued or running job and wait (up to ``timeout_s``) for them to stop,
+        so a server that stops leaves no partial file."""
+        active = [job for job in self.list() if job.active]
+        for job in active:
+            self.cancel(job.id)
+        deadline = time.monotonic() + timeout_s
+        for job in active:
+            if job.thread is not None:
+                job.thread.join(max(0.0, deadline - time.monotonic()))
 
     def shown(self, path: Path) -> str:
         """``path`` as the page shows it: relative to the output folder, under its name."""
@@ -227,13 +239,35 @@ def output_path(out: Path, source: str, suffix: str, ext: str, taken=frozenset()
     return path
 
 
+class Kept:
+    """The last ``size`` results a panel computed (edited motions, retarget results), by key,
+    for the page's follow-up requests."""
+
+    def __init__(self, size: int) -> None:
+        self.size = size
+        self._items: OrderedDict[str, object] = OrderedDict()
+        self._lock = threading.Lock()
+
+    def put(self, key: str, value) -> None:
+        with self._lock:
+            self._items[key] = value
+            self._items.move_to_end(key)
+            while len(self._items) > self.size:
+                self._items.popitem(last=False)
+
+    def get(self, key: str):
+        """The value kept under ``key``, or ``None``."""
+        with self._lock:
+            return self._items.get(key)
+
+
 def library_name(library, out: Path | None, entry) -> str:
     """``"<root name>/<relative path>"`` of a take for :func:`output_path`; a take already in the
     output folder keeps its place there (an edit of an edit is written beside it)."""
+    if out is not None and entry.path.is_relative_to(Path(out).resolve()):
+        return entry.path.relative_to(Path(out).resolve()).as_posix()
     index, _, rel = entry.id.partition("/")
     root = library.roots[int(index)]
-    if out is not None and root == Path(out).resolve():
-        return rel
     return f"{(root.parent if root.is_file() else root).name}/{rel}"
 
 

@@ -12,9 +12,6 @@ SOURCE OUT --target TARGET`` writes with the same options.
 
 from __future__ import annotations
 
-import threading
-from collections import OrderedDict
-
 from starlette.concurrency import run_in_threadpool
 from starlette.requests import Request
 from starlette.responses import JSONResponse, Response
@@ -23,7 +20,7 @@ from starlette.routing import Route
 from usdmotion.studio import takes
 from usdmotion.studio.errors import StudioError
 from usdmotion.studio.edit_panel import saved
-from usdmotion.studio.jobs import error_text, json_body, library_name
+from usdmotion.studio.jobs import Kept, error_text, json_body, library_name
 
 #: Retarget results kept for playing and saving.
 KEEP_RESULTS = 4
@@ -35,14 +32,14 @@ CHOICES = {"method": ("lm", "adam"), "lengths": ("source", "target"), "init": ("
 class RetargetPanel:
     def __init__(self, api) -> None:
         self.api = api
-        self._results: OrderedDict[str, object] = OrderedDict()
-        self._lock = threading.Lock()
+        self._results = Kept(KEEP_RESULTS)
 
     def routes(self) -> list[Route]:
         return [Route("/api/retarget/map", self.joint_map, methods=["POST"]),
                 Route("/api/retarget", self.start, methods=["POST"]),
                 Route("/api/retarget/positions", self.positions),
-                Route("/api/retarget/save", self.save, methods=["POST"])]
+                Route("/api/retarget/save", self.save, methods=["POST"]),
+                Route("/api/retarget/profiles", self.profiles)]
 
     def request(self, body: dict) -> tuple:
         """Source and target entries and the retarget keywords of a request body."""
@@ -67,9 +64,22 @@ class RetargetPanel:
         if iterations is not None and not (isinstance(iterations, int) and 0 <= iterations <= 100_000):
             raise StudioError(400, f"iterations must be an integer in 0..100000, got {iterations!r}")
         options["iterations"] = iterations
+        profiles = body.get("profiles")  # [source profile, target profile]: the map goes through them
+        options["map"] = None
+        if profiles:
+            if not (isinstance(profiles, list) and len(profiles) == 2 and all(isinstance(p, str) for p in profiles)):
+                raise StudioError(400, "profiles must be [source profile, target profile]")
+            options["map"] = {"source_profile": profiles[0], "target_profile": profiles[1], "auto": True}
         if target is None and not remove:
             raise StudioError(400, "choose a target take, or joints to remove")
         return source, target, options
+
+    def profiles(self, request: Request) -> Response:
+        """The rig profiles a joint map can go through: ``[{name, description}]``."""
+        from usdmotion.skeleton_names import rig_profiles
+
+        return JSONResponse({"profiles": [{"name": n, "description": p.get("description", "")}
+                                          for n, p in sorted(rig_profiles().items())]})
 
     def motions(self, source, target):
         src = self.api.compute(source, "motion", None)
@@ -93,7 +103,8 @@ class RetargetPanel:
         def compute() -> dict:
             try:
                 src, tgt = self.motions(source, target)
-                setup = prepare(src, tgt, remove=options["remove"], lengths=options["lengths"],
+                setup = prepare(src, tgt, remove=options["remove"], joint_map=joint_map(options),
+                                lengths=options["lengths"],
                                 scale=parse_scale(options["scale"]), source_path=str(source.path),
                                 target_path=None if target is None else str(target.path))
             except Exception as exc:  # noqa: BLE001 - one line to the page
@@ -122,14 +133,12 @@ class RetargetPanel:
         def work(progress, outputs):
             src, tgt = self.motions(source, target)
             progress(0, src.n_frames, "preparing (the first run compiles the solver)")
-            result = retarget(src, tgt, remove=options["remove"], method=options["method"],
+            result = retarget(src, tgt, remove=options["remove"], joint_map=joint_map(options),
+                              method=options["method"],
                               iterations=options["iterations"], lengths=options["lengths"],
                               scale=parse_scale(options["scale"]), init=options["init"], source_path=str(source.path),
                               target_path=None if target is None else str(target.path), progress=progress)
-            with self._lock:
-                self._results[key] = (result, source, target, options)
-                while len(self._results) > KEEP_RESULTS:
-                    self._results.popitem(last=False)
+            self._results.put(key, (result, source, target, options))
             rep = result.report
             cm = 100.0 * result.motion.meters_per_unit  # the report is in target units
             return {"key": key, **takes.skeleton(result.motion),
@@ -142,8 +151,7 @@ class RetargetPanel:
         return JSONResponse({"job": job.id})
 
     def result(self, key: str):
-        with self._lock:
-            found = self._results.get(key)
+        found = self._results.get(key)
         if found is None:
             raise StudioError(404, "this retarget result is no longer kept: run it again")
         return found
@@ -172,6 +180,13 @@ class RetargetPanel:
 
         job = jobs.submit("retarget-save", [path], work, names={str(source.path): source.name})
         return JSONResponse({"job": job.id, "output": jobs.shown(path)})
+
+
+def joint_map(options: dict):
+    """The request's joint map (through two rig profiles, the rest automatic), or ``None``: automatic."""
+    from usdmotion.ops.retarget.jointmap import joint_map_from_document
+
+    return None if options["map"] is None else joint_map_from_document(options["map"])
 
 
 def routes(api) -> list[Route]:

@@ -93,6 +93,44 @@ def view_positions(motion: Motion) -> np.ndarray:
     return np.ascontiguousarray(p, dtype=np.float32)
 
 
+def edited_view_positions(original: Motion, original_view: np.ndarray, edited: Motion) -> np.ndarray:
+    """:func:`view_positions` of ``edited`` (an edit of ``original``, whose ``original_view``
+    positions are known): when the skeleton and frames are the same, only the joints below a
+    changed local rotation or translation go through the FK (with their ancestors); the rest are
+    ``original_view``'s. The same numbers, much less work for an edit of one limb.
+    """
+    from usdmotion.kinematics import fk_arrays, local_translations
+
+    same = (edited.n_frames == original.n_frames and edited.joint_names == original.joint_names
+            and np.array_equal(edited.parents, original.parents) and edited.up_axis == original.up_axis
+            and edited.meters_per_unit == original.meters_per_unit)
+    if not same:
+        return view_positions(edited)
+    translations = local_translations(edited)
+    changed = (np.any(edited.rotations != original.rotations, axis=(0, 2))
+               | np.any(translations != local_translations(original), axis=(0, 2)))
+    parents = edited.parents
+    dirty = changed.copy()
+    for j in range(1, len(parents)):  # parents before children: one pass marks every descendant
+        dirty[j] |= parents[j] >= 0 and dirty[parents[j]]
+    if not dirty.any():
+        return original_view
+    needed = dirty.copy()
+    for j in range(len(parents) - 1, 0, -1):  # and every ancestor of a dirty joint
+        if needed[j] and parents[j] >= 0:
+            needed[parents[j]] = True
+    if needed.all():
+        return view_positions(edited)
+    subset = np.flatnonzero(needed)
+    position = {int(j): i for i, j in enumerate(subset)}
+    sub_parents = np.array([position[int(parents[j])] if parents[j] >= 0 else -1 for j in subset])
+    _, p = fk_arrays(edited.rotations[:, subset], translations[:, subset], sub_parents)
+    out = np.array(original_view)
+    rows = np.flatnonzero(dirty[subset])
+    out[:, subset[rows]] = to_view(p[:, rows] * edited.meters_per_unit, edited.up_axis)
+    return out
+
+
 def analysis(motion: Motion):
     """The library's kinematics of every frame, with centre of mass where the body model fits."""
     from usdmotion.anthropometry import body_model
@@ -128,3 +166,16 @@ def series(kin, joints: list[str], quantities: list[str]) -> dict:
         v = np.round(np.asarray(s["values"], dtype=np.float64), 5)
         s["values"] = np.where(np.isfinite(v), v, None).tolist()  # JSON has no NaN: null
     return {"time": np.round(kin.time, 6).tolist(), "series": out, "com": kin.com is not None}
+
+
+def series_query(kin, params, max_joints: int = 200) -> dict:
+    """:func:`series` for a request's ``joints`` (comma-separated) and ``q`` (quantities)
+    parameters; ``StudioError`` 400 for a name the take does not have."""
+    from usdmotion.studio.errors import StudioError
+
+    joints = [j for j in params.get("joints", "").split(",") if j][:max_joints]
+    quantities = [q for q in params.get("q", "bend,speed,com_height,com_speed").split(",") if q]
+    bad = [j for j in joints if j not in kin.joint_names] + [q for q in quantities if q not in QUANTITIES]
+    if bad:
+        raise StudioError(400, f"unknown joint or quantity {bad[0]!r}")
+    return series(kin, joints, quantities)

@@ -2,7 +2,8 @@
 renderer (:func:`usdmotion.render.render_motion`, what ``usdmotion render`` runs) as a
 job with progress, and the finished file served for download from the output folder.
 
-The page sends its view: camera preset, compare take and time alignment (the ghost),
+The page sends its view: camera preset, compare take and time alignment (the ghost: DTW, or
+a manual offset in seconds as the renderer's ``frame:N,M``),
 joint and centre-of-mass traces, loop range and playback speed; they become
 :class:`usdmotion.render.RenderOptions` exactly as the CLI's options do.
 """
@@ -50,8 +51,15 @@ def render_options(body: dict, motion, other) -> tuple:
     traces = body.get("traces") or []
     if not isinstance(traces, list) or not all(isinstance(t, str) for t in traces) or len(traces) > 8:
         raise StudioError(400, "traces must be a list of at most 8 joint names (or 'com')")
-    align = {"dtw": "time", "offset": "start"}.get(body.get("align", "offset"), "start") if other is not None \
-        else "start"
+    align = "start"
+    if other is not None and body.get("align") == "dtw":
+        align = "time"
+    elif other is not None:  # the ghost starts ``offset`` s later (earlier when negative), in real time
+        offset = body.get("offset", 0)
+        if not isinstance(offset, (int, float)) or not abs(offset) < 1e6:
+            raise StudioError(400, f"offset must be a number of seconds, got {offset!r}")
+        align = (f"frame:{round(offset * motion.fps)},0" if offset >= 0 else
+                 f"frame:0,{min(round(-offset * other.fps), other.n_frames - 1)}")
     width, height = SIZES[size]
     options = RenderOptions(width=width, height=height, start=start, end=end, speed=float(speed),
                             camera=CAMERAS[camera], style=style, grid=bool(body.get("grid", True)),

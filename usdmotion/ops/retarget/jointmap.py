@@ -88,6 +88,12 @@ def load_joint_map(path: str | Path) -> JointMap:
     bad = _non_finite(doc)  # 1e400 parses as inf
     if bad is not None:
         raise JointMapError(path, f"invalid joint map at {_json_path(bad)}: not a finite number")
+    return joint_map_from_document(doc, path)
+
+
+def joint_map_from_document(doc, path: str | Path | None = None) -> JointMap:
+    """A parsed joint map document (``schemas/jointmap.schema.json``) checked and read;
+    ``path`` names it in errors and the report."""
     _validate(doc, "jointmap", path)
     pairs: dict[str, str | None] = {}
     weights: dict[str, float] = {}
@@ -110,7 +116,7 @@ def load_joint_map(path: str | Path) -> JointMap:
                                           f"(known: {', '.join(sorted(known))})")
         profiles = (doc["source_profile"], doc["target_profile"])
     auto = bool(doc.get("auto", False))
-    return JointMap(pairs, weights, "file", str(path), auto, profiles)
+    return JointMap(pairs, weights, "file", None if path is None else str(path), auto, profiles)
 
 
 # -------------------------------------------------------------------------- profiles

@@ -58,6 +58,14 @@ export function mountEdits(studio) {
   }
 
   const num = id => { const v = $(id).value.trim(); return v === '' ? null : Number(v); };
+  // seconds as the pipeline writes them ("1.5s"); a negative or non-number value is sent as it is,
+  // so the server's check answers with its one line
+  const seconds = v => (Number.isFinite(v) && v >= 0 ? `${v}s` : v);
+
+  /** The original take's frame under the cursor (the ghost's while a preview plays). */
+  function originalFrame() {
+    return panel.edited && player.ghostMap ? Math.round(player.ghostMap[player.frame]) : player.frame;
+  }
 
   /** The operations of the panel's controls, in the schema of ``usdmotion edit --pipeline``. */
   function operations() {
@@ -67,23 +75,24 @@ export function mountEdits(studio) {
       if (!gains || gains.every(g => g === 1)) continue;
       for (const select of group.select) ops.push({op: 'equalize', gains: [...gains], ...select});
     }
+    // the pipeline reads a number as frames and "1.5s" as seconds
     const rot = ['disp-rx', 'disp-ry', 'disp-rz'].map(num);
     if (rot.some(v => v)) {
-      const frame = num('disp-frame') ?? player.frame;
-      ops.push({op: 'displace', keys: [{joint: $('disp-joint').value, frame: frame / player.fps,
+      ops.push({op: 'displace', keys: [{joint: $('disp-joint').value, frame: num('disp-frame') ?? originalFrame(),
                                        rotate: rot.map(v => v || 0)}],
-                ...(num('disp-falloff') ? {falloff: num('disp-falloff')} : {})});
+                ...(num('disp-falloff') !== null ? {falloff: seconds(num('disp-falloff'))} : {})});
     }
     if ($('blend-with').value) {
       const op = {op: 'blend', with: $('blend-with').value};
-      if (num('blend-at') !== null) op.at = num('blend-at');
-      if (num('blend-transition') !== null) op.transition = num('blend-transition');
+      if (num('blend-at') !== null) op.at = seconds(num('blend-at'));
+      if (num('blend-transition') !== null) op.transition = seconds(num('blend-transition'));
       ops.push(op);
     }
     const speedText = $('edit-speed').value.trim();
     if (speedText && speedText !== '1') {
       const keys = speedText.split(',').map(s => s.trim()).filter(Boolean).map(s => s.split(':').map(Number));
-      ops.push(keys.length === 1 && keys[0].length === 1 ? {op: 'speed', factor: keys[0][0]} : {op: 'speed', keys});
+      ops.push(keys.length === 1 && keys[0].length === 1 ? {op: 'speed', factor: keys[0][0]}
+        : {op: 'speed', keys: keys.map(([t, v]) => [seconds(t), v])});
     }
     if (num('trim-start') !== null || num('trim-stop') !== null) {
       const op = {op: 'trim'};

@@ -2,7 +2,8 @@
 // removed), see the automatic joint map and what could not be mapped, retarget as a job with a
 // progress bar, then play the target with the source as the ghost and the per-joint error;
 // Save as USD or BVH (the CLI's writer). Every number comes from usdmotion.ops.retarget.
-import {getFloats} from './api.js';
+import * as THREE from 'three';
+import {getFloats, getJSON} from './api.js';
 import {JobBar, postJSON} from './jobs.js';
 
 const $ = id => document.getElementById(id);
@@ -23,6 +24,9 @@ export function mountRetarget(studio) {
     const body = {take: take.id, remove: $('rt-remove').value, scale: $('rt-scale').value,
                   lengths: $('rt-lengths').value};
     if ($('rt-target').value) body.target = $('rt-target').value;
+    if ($('rt-source-profile').value && $('rt-target-profile').value) {
+      body.profiles = [$('rt-source-profile').value, $('rt-target-profile').value];
+    }
     return body;
   }
 
@@ -71,11 +75,27 @@ export function mountRetarget(studio) {
     player.setTake(target);
     player.setGhost(take, null);
     player.setFrame(frame);
+    colourByError(player.figure, result.per_joint_rms_cm);
     const rows = Object.entries(result.per_joint_rms_cm).sort((a, b) => b[1] - a[1])
       .map(([name, v]) => [name, v.toFixed(2)]);
     $('rt-errors').replaceChildren(table(rows, ['target joint', 'RMS error (cm)']));
-    runBar.say(`retargeted: ${result.summary} (source: orange ghost)`);
+    runBar.say(`retargeted: ${result.summary} (source: orange ghost; joints green → red by error)`);
     $('retarget-panel').dataset.state = 'done';
+  }
+
+  /** The target's joint spheres coloured by their RMS error: green (least) to red (most). */
+  function colourByError(figure, errors) {
+    const worst = Math.max(1e-9, ...Object.values(errors));
+    const colour = new THREE.Color();
+    figure.joints.material.color.set(0xffffff);
+    figure.take.joint_names.forEach((name, j) => {
+      const e = errors[name];
+      if (e === undefined) colour.set(0x888888);
+      else colour.setHSL(0.33 * (1 - e / worst), 0.85, 0.45);
+      figure.joints.setColorAt(j, colour);
+    });
+    figure.joints.instanceColor.needsUpdate = true;
+    player.dirty = true;
   }
 
   async function save() {
@@ -88,6 +108,11 @@ export function mountRetarget(studio) {
     }
   }
 
+  getJSON('/api/retarget/profiles').then(({profiles}) => {
+    for (const id of ['rt-source-profile', 'rt-target-profile']) {
+      $(id).append(...profiles.map(p => Object.assign(new Option(p.name, p.name), {title: p.description})));
+    }
+  }).catch(() => {});
   $('rt-show-map').onclick = showMap;
   $('rt-run').onclick = run;
   $('rt-save').onclick = save;

@@ -16,7 +16,7 @@ export function mountVideo(studio) {
                   style: $('video-style').value, grid: state.grid,
                   traces: [...(state.trace ? [state.trace] : []), ...(state.comTrace ? ['com'] : [])]};
     if (player.range) { body.start = player.range[0]; body.end = player.range[1] + 1; }
-    if (state.compare) { body.compare = state.compare; body.align = state.align; }
+    if (state.compare) { body.compare = state.compare; body.align = state.align; body.offset = state.offset; }
     return body;
   }
 
