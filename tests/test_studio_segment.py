@@ -279,6 +279,18 @@ def test_a_long_take_is_segmented_as_a_job(studio86, monkeypatch):
     assert job["result"]["doc"]["cuts"] == expected.tolist()
 
 
+def test_a_failed_detector_job_keeps_the_clis_line(studio_errors, monkeypatch):
+    from usdmotion.studio import segment_panel
+
+    base, _, _ = studio_errors
+    monkeypatch.setattr(segment_panel, "LONG_TAKE_FRAMES", 100)
+    status, started = request(base, "POST", "/api/segment/detect", {"take": "0/legs.bvh"})
+    assert status == 200 and "job" in started, started
+    job = wait_state(base, started["job"])
+    assert job["state"] == "failed" and re.fullmatch(
+        r"usdmotion: error: legs\.bvh: cannot find the joints for role\(s\) [^\n]*", job["error"]), job
+
+
 def test_a_cancelled_export_leaves_no_clip_and_no_folder(studio86):
     base, _, out = studio86
     cuts = list(range(20, 4579, 20))  # 229 clips: seconds of work, cancelled at once

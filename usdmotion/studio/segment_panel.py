@@ -158,8 +158,12 @@ class SegmentPanel:
         entry = self.api.take(request)
         return JSONResponse(self.compute(entry, "segment_signal", lambda m: signal(m, entry.name)))
 
-    def segmentation(self, entry, options: dict):
+    def segmentation(self, entry, options: dict, in_job: bool = False):
+        """The detector run with ``options``, cached with the take. In a job the library's own
+        exception propagates (the job prints it as the CLI would); in a request it is a 422 line."""
         key = "segment:" + json.dumps(options, sort_keys=True)
+        if in_job:
+            return self.api.cache.get(entry, key, lambda m: detect(m, options, entry.name))
         return self.compute(entry, key, lambda m: detect(m, options, entry.name))
 
     async def detect(self, request: Request) -> Response:
@@ -173,7 +177,7 @@ class SegmentPanel:
 
         def work(progress, outputs):
             progress(0, None, f"segmenting {entry.name}")
-            return detection_answer(self.segmentation(entry, options))
+            return detection_answer(self.segmentation(entry, options, in_job=True))
 
         job = self.api.jobs.submit("segment", [], work, names={str(entry.path): entry.name})
         return JSONResponse({"job": job.id})
@@ -229,7 +233,7 @@ class SegmentPanel:
         paths = clip_paths(seg, folder, stem, fmt, range(len(seg.bounds())))
 
         def work(progress, outputs):
-            motion = self.compute(entry, "motion", None)
+            motion = self.api.cache.motion(entry)  # read already (the cuts were checked against it)
             try:
                 written = export_clips(motion, seg, folder, fmt, stem, progress=progress)
             except BaseException:  # failed or cancelled: no clip and no folder is left
