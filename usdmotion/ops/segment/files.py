@@ -145,8 +145,7 @@ def export_clips(motion: Motion, seg: Segmentation, folder: str | os.PathLike, f
                  progress: Progress = no_progress) -> list[Path]:
     """Write one motion file per segment (or per segment in ``indices``); returns the paths.
 
-    ``progress(i, n, "clip …")`` is called before each clip (and ``(n, n, ...)`` at the end).
-    """
+    ``progress(written, clips, message)`` after each clip."""
     if fmt not in CLIP_FORMATS:
         raise OutputError(f"unknown clip format {fmt!r} (use {', '.join(CLIP_FORMATS)})")
     folder = Path(folder)
@@ -157,8 +156,8 @@ def export_clips(motion: Motion, seg: Segmentation, folder: str | os.PathLike, f
     indices = range(len(seg.bounds())) if indices is None else indices
     paths = clip_paths(seg, folder, stem, fmt, indices)
     bounds = seg.bounds()
-    for done, (i, path) in enumerate(zip(indices, paths)):
-        progress(done, len(paths), f"clip {path.name}")
+    for k, (i, path) in enumerate(zip(indices, paths)):
+        progress(k, len(paths), f"writing {path.name}")
         write_motion(clip(motion, int(bounds[i][0]), int(bounds[i][1])), path)
-    progress(len(paths), len(paths), "clips written")
+    progress(len(paths), len(paths), f"wrote {len(paths)} clips")
     return paths
