@@ -59,7 +59,7 @@ def test_equaliser_slider_changes_only_the_chosen_limb(studio, page):
     np.testing.assert_allclose(edited, expected, atol=1e-5)
     # the plots show both takes: edited solid, original dashed
     labels = page.evaluate("() => [...document.querySelectorAll('#plots .u-legend .u-label')].map(e => e.textContent)")
-    assert any("(compare)" in label for label in labels)
+    assert "LeftUpLeg joint angle (original) (deg)" in labels and "LeftUpLeg joint angle (deg)" in labels
     shoot(page, "edits.png", frame=200)
 
     # Save as: a new file in the output folder, listed in the library; the original untouched

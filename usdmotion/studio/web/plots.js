@@ -13,7 +13,7 @@ export class Plots {
   }
 
   /** data: the server's series answer; ghost: the compare take's, ghostMap its frame per frame. */
-  show(data, ghost = null, ghostMap = null) {
+  show(data, ghost = null, ghostMap = null, ghostName = 'compare') {
     this.charts.forEach(c => c.plot.destroy());
     this.charts = [];
     this.container.replaceChildren();
@@ -24,7 +24,7 @@ export class Plots {
       const g = ghost && ghost.series.find(o => o.key === s.key && o.joint === s.joint);
       if (g && ghostMap) {
         const values = ghostMap.map(f => g.values[Math.round(f)]);
-        byUnit.get(s.unit).push({...g, label: `${g.label} (compare)`, values, color: COLORS[i % COLORS.length],
+        byUnit.get(s.unit).push({...g, label: `${g.label} (${ghostName})`, values, color: COLORS[i % COLORS.length],
                                  dash: [6, 4]});
       }
     });
