@@ -73,6 +73,7 @@ AREAS = [
     ("ops/analys", "Analysis (docs/analyze.md)", "See docs/analyze.md."),
     ("ops", "Other operations", "Adjust the options as the message says."),
     ("cli", "Command-line options", "See `usdmotion COMMAND --help`."),
+    ("studio", "Studio (docs/studio.md)", "Shown in the Studio's page (or its API answer); see docs/studio.md."),
     ("", "Biomechanics documents and models", "Fix the document at the path shown (schemas/)."),
 ]
 

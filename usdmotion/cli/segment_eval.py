@@ -24,18 +24,23 @@ def segment_eval(
     first_frame: Annotated[int, typer.Option(help="Label number of the motion's frame 0 (CMU AMC: 1).")] = 1,
     tolerance: Annotated[float, typer.Option(help="A cut matches within its labelled transition band or "
                                                   "this many seconds of the labelled cut.")] = 0.5,
+    cuts: Annotated[Path | None, typer.Option(
+        help="Score the cuts of this segments JSON (`segment --out`, or saved by the Studio's editor) instead "
+             "of running the detectors.", show_default=False)] = None,
     as_json: Json = False,
     read: ReadOptions = ReadOptions(),
     detector: DetectorOptions = DetectorOptions(),
 ) -> None:
-    """Score both detectors (kcpd and the paper's heuristic) against labelled cuts."""
+    """Score both detectors (kcpd and the paper's heuristic), or a segments file, against labelled cuts."""
     from usdmotion.ops.segment.evaluate import load_labels, score_cuts
 
     truth = load_labels(labels, trial, 0 if labels.suffix.lower() == ".json" and _is_ours(labels) else first_frame)
     motion = read.read(source)
     tol = int(round(tolerance * motion.fps))
     results = {}
-    for method in MethodChoice:
+    if cuts is not None:
+        results[cuts.name] = {"params": {}, **score_cuts(_saved_cuts(cuts, motion.n_frames), truth, tol).to_dict()}
+    for method in MethodChoice if cuts is None else ():
         seg = detector.run(motion, source, method)
         results[method.value] = {"params": seg.params, **score_cuts(seg.cuts, truth, tol).to_dict()}
     if as_json:
@@ -44,11 +49,23 @@ def segment_eval(
         return
     typer.echo(f"{source.name} vs {labels.name}: {truth.cuts.size} labelled cuts, match within the labelled band "
                f"or ±{tolerance:g} s (±{tol} frames), one-to-one")
-    typer.echo(f"{'method':<10} {'detected':>8} {'hits':>5} {'precision':>9} {'recall':>7} {'F1':>6} "
+    width = max(10, *(len(name) for name in results))
+    typer.echo(f"{'method':<{width}} {'detected':>8} {'hits':>5} {'precision':>9} {'recall':>7} {'F1':>6} "
                f"{'in-region P':>11}")
     for name, r in results.items():
-        typer.echo(f"{name:<10} {r['detected']:>8} {r['true_positives']:>5} {r['precision']:>9.1%} "
+        typer.echo(f"{name:<{width}} {r['detected']:>8} {r['true_positives']:>5} {r['precision']:>9.1%} "
                    f"{r['recall']:>7.1%} {r['f1']:>6.3f} {r['in_region_precision']:>11.1%}")
+
+
+def _saved_cuts(path: Path, n_frames: int) -> list[int]:
+    """The cuts of a segments JSON, checked against the schema and the motion's length."""
+    from usdmotion.errors import InputError
+    from usdmotion.schemas import load_document
+
+    doc = load_document(path, "segments")
+    if doc["frames"] != n_frames:
+        raise InputError(path, f"segments of a {doc['frames']}-frame take, the motion has {n_frames} frames")
+    return doc["cuts"]
 
 
 def _is_ours(path: Path) -> bool:

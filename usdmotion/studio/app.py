@@ -130,7 +130,7 @@ def _compare_params(request: Request, n_frames: int) -> tuple[str, float, int]:
 def create_app(roots: list[Path], options: dict | None = None, out: Path | None = None) -> Starlette:
     """The studio over ``roots``, reading with ``options`` (:func:`usdmotion.io.read_motion`
     keywords); ``out`` is the only folder it may write to (created on first use)."""
-    from usdmotion.studio import edit_panel, jobs, retarget_panel, video_panel
+    from usdmotion.studio import edit_panel, jobs, retarget_panel, segment_panel, video_panel
 
     options = read_options(**(options or {}))
     cache = takes.TakeCache(options)
@@ -144,7 +144,7 @@ def create_app(roots: list[Path], options: dict | None = None, out: Path | None 
         return FileResponse(WEB / "index.html", headers={"Cache-Control": "no-cache"})
 
     routes = [Route("/", index), *api.routes(), *jobs.routes(api.jobs), *edit_panel.routes(api),
-              *retarget_panel.routes(api), *video_panel.routes(api),
+              *retarget_panel.routes(api), *video_panel.routes(api), *segment_panel.routes(api),
               Mount("/app", _Static(directory=WEB, check_dir=False), name="app"),
               Mount("/vendor/three", _Static(directory=NODE_MODULES / "three", check_dir=False), name="three"),
               Mount("/vendor/uplot", _Static(directory=NODE_MODULES / "uplot", check_dir=False), name="uplot")]

@@ -82,6 +82,8 @@ class Segmentation:
             for the heuristic.
         regions: ``(K, 2)`` kcpd: inclusive frame range of each cut's change region (the
             refinement never leaves it); ``None`` for the heuristic.
+        edited: the cuts were placed or moved by a person (:func:`~usdmotion.ops.segment.files.edited`),
+            not the detector's as found; ``method`` and ``params`` name the run the edit started from.
     """
 
     cuts: np.ndarray
@@ -97,6 +99,7 @@ class Segmentation:
     roles: dict = field(default_factory=dict)
     confidence: np.ndarray | None = field(default=None, repr=False)
     regions: np.ndarray | None = field(default=None, repr=False)
+    edited: bool = False
 
     def bounds(self) -> np.ndarray:
         """``(S, 2)`` first and last frame (inclusive) of every segment."""
@@ -119,6 +122,8 @@ class Segmentation:
         ]
         doc = {"method": self.method, "params": dict(self.params), "fps": self.fps, "frames": self.n_frames,
                "roles": dict(self.roles), "cuts": [int(c) for c in self.cuts], "segments": segments}
+        if self.edited:
+            doc["edited"] = True
         if self.confidence is not None:
             doc["cut_details"] = [
                 {"frame": int(c), "confidence": round(float(p), 4), "low_confidence": bool(p < LOW_CONFIDENCE),

@@ -175,6 +175,50 @@ def score_cuts(detected, labels: Labels, tolerance_frames: int) -> Score:
                  in_region=int(inside.any(axis=1).sum()), pairs=pairs)
 
 
+@dataclass(frozen=True)
+class EditPlan:
+    """What a person does to turn detected cuts into labelled ones (the editor's effort).
+
+    ``moved``: ``(detected frame, labelled frame)`` pairs whose frames differ; ``added``: labelled
+    cuts no detection was paired with; ``deleted``: detections paired with no labelled cut;
+    ``kept``: detections exactly on their labelled cut; ``needed``: moved cuts that were not hits
+    already (outside their labelled cut's valid region, :func:`valid_regions`).
+    """
+
+    moved: tuple[tuple[int, int], ...]
+    added: tuple[int, ...]
+    deleted: tuple[int, ...]
+    kept: int
+    needed: int
+
+    def to_dict(self) -> dict:
+        return {"moved": [list(p) for p in self.moved], "added": list(self.added), "deleted": list(self.deleted),
+                "kept": self.kept, "needed": self.needed}
+
+
+def edits_to_labels(detected, labels: Labels, tolerance_frames: int) -> EditPlan:
+    """Pair detected cuts with labelled cuts, nearest first, one to one (each detection moves to
+    the nearest labelled boundary not taken by a nearer detection), and list the edits.
+    """
+    detected = np.sort(np.asarray(detected, dtype=np.int64).reshape(-1))
+    truth = labels.cuts
+    distance = np.abs(detected[:, None] - truth[None, :])
+    order = np.argsort(distance, axis=None, kind="stable")
+    used_d, used_t, pairs = set(), set(), []
+    for flat in order:                       # a few cuts: K detected × L labelled pairs
+        i, k = divmod(int(flat), truth.size)
+        if i not in used_d and k not in used_t:
+            used_d.add(i)
+            used_t.add(k)
+            pairs.append((i, k))
+    regions = valid_regions(labels, tolerance_frames)
+    moved = tuple(sorted((int(detected[i]), int(truth[k])) for i, k in pairs if detected[i] != truth[k]))
+    needed = sum(1 for i, k in pairs if not regions[k, 0] <= detected[i] <= regions[k, 1])
+    return EditPlan(moved=moved, added=tuple(int(truth[k]) for k in range(truth.size) if k not in used_t),
+                    deleted=tuple(int(detected[i]) for i in range(detected.size) if i not in used_d),
+                    kept=len(pairs) - len(moved), needed=needed)
+
+
 def synthetic_take(motions: list, blend_s: float = 0.5, source: str | None = None):
     """Concatenate motions of one skeleton into a take whose cuts are known.
 

@@ -6,6 +6,7 @@ motion writers), so a failure never leaves a partial file.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 from collections.abc import Sequence
@@ -22,14 +23,59 @@ from usdmotion.ops.segment.detect import LOW_CONFIDENCE, Segmentation, clip
 from usdmotion.progress import Progress, no_progress
 
 CLIP_FORMATS = ("bvh", "usda", "usdc")
+#: Longest segment label kept in a segments file (characters).
+MAX_LABEL_CHARS = 200
+
+
+def edited(seg: Segmentation, cuts: Sequence[int]) -> Segmentation:
+    """``seg`` with the cuts a person placed: ``cuts`` must be increasing frames in ``1 .. n_frames-1``.
+
+    The detector's per-cut confidence and change regions describe its own cuts, so they are
+    dropped; ``edited`` is set and ``method``/``params`` keep the run the edit started from.
+
+    Raises:
+        ValueError: a cut that is not a whole frame inside the take, or cuts out of order.
+    """
+    values = list(cuts)
+    if not all(isinstance(c, (int, np.integer)) and not isinstance(c, bool) for c in values):
+        raise ValueError("cuts must be whole frame numbers")
+    array = np.asarray(values, dtype=np.int64).reshape(-1)
+    if array.size and (array[0] < 1 or array[-1] > seg.n_frames - 1):
+        raise ValueError(f"cuts must be frames within 1..{seg.n_frames - 1}")
+    if np.any(np.diff(array) <= 0):
+        raise ValueError("cuts must be increasing, at most one per frame")
+    return dataclasses.replace(seg, cuts=array, confidence=None, regions=None, edited=True)
+
+
+def segments_document(seg: Segmentation, source: str | None = None, selected: int | None = None,
+                      labels: Sequence[str] | None = None) -> dict:
+    """The segments JSON (``schemas/segments.schema.json``): ``seg.to_dict()`` with the input
+    ``file``, the ``selected`` segment and one ``label`` per segment (empty labels left out).
+
+    Raises:
+        ValueError: ``labels`` not one single-line string per segment.
+    """
+    doc = {"file": source, **seg.to_dict()}
+    if labels is not None:
+        labels = list(labels)
+        if len(labels) != len(doc["segments"]) or not all(isinstance(x, str) for x in labels):
+            raise ValueError(f"need one label (text) per segment: {len(doc['segments'])} segments, "
+                             f"{len(labels)} labels")
+        for row, label in zip(doc["segments"], labels):
+            label = " ".join(label.split())
+            if len(label) > MAX_LABEL_CHARS:
+                raise ValueError(f"segment {row['index']}: label longer than {MAX_LABEL_CHARS} characters")
+            if label:
+                row["label"] = label
+    if selected is not None:
+        doc["selected"] = selected
+    return doc
 
 
 def write_segments_json(seg: Segmentation, path: str | os.PathLike, source: str | None = None,
-                        selected: int | None = None) -> Path:
-    """Write ``seg.to_dict()`` (plus ``file`` and the ``selected`` segment) as JSON."""
-    doc = {"file": source, **seg.to_dict()}
-    if selected is not None:
-        doc["selected"] = selected
+                        selected: int | None = None, labels: Sequence[str] | None = None) -> Path:
+    """Write :func:`segments_document` as JSON (atomically)."""
+    doc = segments_document(seg, source, selected, labels)
     with atomic_output(path) as tmp:
         tmp.write_text(json.dumps(doc, indent=2) + "\n", encoding="utf-8")
     return Path(path)

@@ -7,6 +7,7 @@ import {Plots} from './plots.js';
 import {mountEdits} from './edits.js';
 import {mountRetarget} from './retarget.js';
 import {mountVideo} from './video.js';
+import {SegmentEditor} from './segment.js';
 
 const $ = id => document.getElementById(id);
 const params = new URLSearchParams(location.search);
@@ -20,6 +21,7 @@ const state = {
   stick: params.get('stick') !== '0', body: params.get('body') !== '0', grid: params.get('grid') !== '0',
   trace: params.get('trace') === 'com' ? '' : params.get('trace') || '', loop: params.get('loop') !== '0',
   comTrace: params.get('comtrace') === '1' || params.get('trace') === 'com',
+  seg: params.get('seg') === '1',
 };
 let take = null, ghostTake = null, ghostMap = null, series = null, ghostSeries = null;
 const asked = {series: 0, compare: 0};  // only the latest request of each kind may update the page
@@ -49,6 +51,7 @@ function writeUrl() {
   for (const k of ['stick', 'body', 'grid', 'loop']) if (!state[k]) p.set(k, '0');
   if (state.trace) p.set('trace', state.trace);
   if (state.comTrace) p.set('comtrace', '1');
+  if ($('segment-panel').open) p.set('seg', '1');
   history.replaceState(null, '', `?${p}`);
 }
 
@@ -57,12 +60,16 @@ const player = new Player($('canvas'), frame => {
   $('readout').textContent = `frame ${frame} / ${player.frames - 1} · ${t.toFixed(3)} s`;
   $('scrub').value = frame;
   plots.setTime(t);
+  segments.setFrame(frame);
   if (!player.playing) writeUrl();
 });
 player.onStop = () => { $('play').textContent = '▶'; writeUrl(); };
 player.onOrbit = () => { player.cameraMode = 'orbit'; $('camera').value = 'orbit'; };
 player.onCamera = () => { clearTimeout(player.urlTimer); player.urlTimer = setTimeout(writeUrl, 300); };
 const plots = new Plots($('plots'), t => player.setFrame(Math.round(t * player.fps)));
+const segments = new SegmentEditor($('segment-panel'), {player, seek: f => player.setFrame(f),
+  setRange: r => { player.range = state.range = r; showRange(); applyTrace(); writeUrl(); },
+  playToggle: () => $('play').click(), refreshLibrary: () => tools.refreshLibrary()});
 const library = new LibraryView($('takes'), $('filter'), $('library-status'), id => openTake(id, true));
 // the tool panels (edits, retarget, video) see the page through these few hooks
 const tools = {player, plots, take: () => take, state, reopen: () => openTake(state.take, false),
@@ -89,6 +96,7 @@ async function openTake(id, fresh) {
   } catch (e) {
     $('view-message').textContent = `${id}: ${e.message}`;
     $('view-message').className = 'error-text';
+    segments.setTake(null);
     takeShown();
     return;
   }
@@ -104,6 +112,7 @@ async function openTake(id, fresh) {
   player.setCamera(state.cam, state.orbit.length === 6 ? state.orbit : null);
   $('camera').value = state.cam;
   fillJoints();
+  segments.setTake(take);
   player.setFrame(state.frame);
   edits.opened(take);
   retargeting.opened(take);
@@ -292,6 +301,8 @@ function fillTakeLists() {
 
 async function start() {
   wire();
+  $('segment-panel').open = state.seg;
+  $('segment-panel').addEventListener('toggle', () => writeUrl());
   player.warmUp();  // while the take's arrays are on their way
   const opening = state.take ? openTake(state.take, false) : null;
   await library.load();  // the list of takes, at once
@@ -303,6 +314,6 @@ async function start() {
 }
 
 // for tests and benchmarks: read-only views of the page's state
-window.studio = {player, plots, state, projectJoints: () => player.figure ?
+window.studio = {player, plots, state, segments, projectJoints: () => player.figure ?
   player.figure.take.joint_names.map((_, j) => player.project(player.figure.joint(player.frame, j))) : []};
 start();
