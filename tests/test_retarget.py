@@ -117,7 +117,7 @@ def test_tree_lm_step_equals_the_dense_solve_of_the_autodiff_jacobian(trans):
     with jax.enable_x64(True):
         q, t, targets = (jnp.asarray(a, jnp.float64) for a in (q, t, targets))
         residuals, apply = make_residuals(problem), make_apply(problem)
-        world_q, world_p, r, _ = residuals(q, t, targets)
+        world_q, world_p, r, _, _ = residuals(q, t, targets)
         sqrt_w = jnp.sqrt(jnp.asarray(problem.weights))
 
         def weighted(step):  # (B, P) -> (B, 3M) weighted residuals after the step
@@ -153,7 +153,7 @@ def test_lm_step_drops_only_the_invisible_twist():
     problem, q, t, targets = small_problem()  # joint 2 has one mapped descendant (3), joint 4 one (5)
     slot, joint, point = single_point_joints(problem)
     assert joint.tolist() == [2, 4] and point.tolist() == [3, 5]
-    _, world_p, r, _ = make_residuals(problem)(jnp.asarray(q, jnp.float32), jnp.asarray(t, jnp.float32),
+    _, world_p, r, _, _ = make_residuals(problem)(jnp.asarray(q, jnp.float32), jnp.asarray(t, jnp.float32),
                                                jnp.asarray(targets, jnp.float32))
     lam = jnp.asarray([0.01, 1.0], jnp.float32)
     full = np.asarray(jax.jit(make_tree_step(problem))(world_p, r, lam)).reshape(2, -1, 3)

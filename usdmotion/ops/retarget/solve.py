@@ -45,7 +45,8 @@ from usdmotion.ops.retarget.problem import (ADAM_ITERATIONS, ADAM_LR, LM_ATOL, L
                                             LM_RTOL_TOTAL, LM_UP, Problem, masks)
 from usdmotion.ops.retarget.tree_step import make_tree_step
 from usdmotion.progress import Progress
-from usdmotion.rotations import euler_to_quat, quat_exp, quat_mul, quat_normalize, quat_rotate, quat_to_euler
+from usdmotion.rotations import (euler_to_quat, quat_exp, quat_log, quat_mul, quat_normalize, quat_rotate,
+                                 quat_to_euler)
 
 # JAX (and optax) are imported inside the functions that use them: a deliberately deferred
 # heavy dependency (seconds of start-up), needed only once a solve runs.
@@ -60,21 +61,24 @@ def _skew(a):
 
 
 def make_jacobian(problem: Problem):
-    """``world_p (B,J,3) -> J (B, 3M, P)``: the analytic Jacobian of the weighted residuals
-    ``√w_m (p_m − p̂_m)`` with respect to world-frame rotation increments ``ω_j`` of the
-    rotation joints (``∂p_m/∂ω_j = [p_j − p_m]_×`` for mapped descendants ``m``) and
-    world-frame increments of the free translations (identity on their subtree)."""
+    """``(world_p (B,J,3), w=None (B,P)) -> J (B, 3P, P')``: the analytic Jacobian of the
+    weighted residuals ``√w_m (p_m − p̂_m)`` of the points :attr:`Problem.points` with
+    respect to world-frame rotation increments ``ω_j`` of the rotation joints
+    (``∂p_m/∂ω_j = [p_j − p_m]_×`` for descendants ``m``) and world-frame increments of
+    the free translations (identity on their subtree); ``w``: per-frame weights (default
+    the problem's static ones)."""
     import jax.numpy as jnp
 
-    mapped = jnp.asarray(problem.mapped)
-    sqrt_w = jnp.asarray(np.sqrt(problem.weights), jnp.float32)
+    mapped = jnp.asarray(problem.points)
+    default_w = jnp.asarray(np.r_[problem.point_weights(), np.zeros(len(problem.floor_joints))], jnp.float32)
     rot_j = jnp.asarray(problem.rot_joints)
     rot_mask, trans_mask = (jnp.asarray(m) for m in masks(problem))
-    n_rot, n_trans, n_map = len(problem.rot_joints), len(problem.trans_joints), len(problem.mapped)
+    n_rot, n_trans, n_map = len(problem.rot_joints), len(problem.trans_joints), len(problem.points)
     eye3 = jnp.eye(3, dtype=jnp.float32)
 
-    def jacobian(world_p):
+    def jacobian(world_p, w=None):
         batch = world_p.shape[0]
+        sqrt_w = jnp.sqrt(jnp.broadcast_to(default_w if w is None else w, (batch, n_map)).astype(world_p.dtype))
         blocks = []
         if n_rot:
             a = world_p[:, None, rot_j] - world_p[:, mapped, None]  # (B, M, R, 3)
@@ -84,7 +88,7 @@ def make_jacobian(problem: Problem):
             jt = trans_mask[:, None, :, None] * eye3[None, :, None, :]  # (M, 3, T, 3)
             blocks.append(jnp.broadcast_to(jt.reshape(1, 3 * n_map, 3 * n_trans), (batch, 3 * n_map, 3 * n_trans)))
         jac = jnp.concatenate(blocks, axis=-1) if len(blocks) > 1 else blocks[0]
-        return jac * jnp.repeat(sqrt_w, 3)[None, :, None]
+        return jac * jnp.repeat(sqrt_w, 3, axis=-1)[:, :, None]
 
     return jacobian
 
@@ -122,20 +126,67 @@ def make_apply(problem: Problem):
 
 
 def make_residuals(problem: Problem):
-    """``(q, t, targets) -> (world_q, world_p, r (B, M, 3), loss (B,))`` with
-    ``r = p_mapped − targets`` and ``loss = Σ_m w_m ‖r_m‖²`` per frame."""
+    """``(q, t, targets (B, M+C, 3), w=None (B, M+C), floor=None (B,)) -> (world_q, world_p,
+    r (B, P, 3), loss (B,), w (B, P))``.
+
+    ``r`` holds the residuals of the points :attr:`Problem.points`: ``p − target`` for the
+    mapped and contact joints, and for the floor joints ``(p_up − floor)`` on the vertical
+    axis where a joint is below the floor (0 elsewhere; weight ``floor_weight`` there, 0
+    elsewhere — a one-sided term). ``loss = Σ w ‖r‖²`` per frame. ``w`` defaults to the
+    problem's static weights (contact terms off)."""
     import jax.numpy as jnp
 
     parents = problem.parents
-    mapped = jnp.asarray(problem.mapped)
-    w = jnp.asarray(problem.weights, jnp.float32)
+    near = jnp.asarray(np.r_[problem.mapped, problem.contact_joints].astype(np.int64))
+    floor_j = jnp.asarray(problem.floor_joints)
+    default_w = jnp.asarray(problem.point_weights(), jnp.float32)
+    n_floor, up = len(problem.floor_joints), int(problem.up)
 
-    def residuals(q, t, targets):
+    def residuals(q, t, targets, w=None, floor=None):
         world_q, world_p = fk_arrays(q, t, parents)
-        r = world_p[:, mapped] - targets
-        return world_q, world_p, r, jnp.einsum("bmk,bmk,m->b", r, r, w.astype(r.dtype))
+        r = world_p[:, near] - targets
+        w = jnp.broadcast_to(default_w if w is None else w, r.shape[:2]).astype(r.dtype)
+        if n_floor:
+            height = world_p[:, floor_j, up] - (0.0 if floor is None else floor[:, None])
+            below = height < 0
+            r = jnp.concatenate([r, jnp.zeros(height.shape + (3,), r.dtype).at[..., up].set(
+                jnp.where(below, height, 0.0))], axis=1)
+            w = jnp.concatenate([w, jnp.where(below, problem.floor_weight, 0.0).astype(r.dtype)], axis=1)
+        return world_q, world_p, r, jnp.einsum("bmk,bmk,bm->b", r, r, w), w
 
     return residuals
+
+
+def make_smoothness(problem: Problem):
+    """``(world_q (B,J,4), mask (B,)) -> (rot_r (B,R,3), rot_w (B,R), loss (B,))``: the
+    temporal term of the rotation joints. ``rot_r = log(W_j(f) · M_j(f)⁻¹)`` (world frame,
+    radians) with ``M_j(f)`` the normalised quaternion mean of ``W_j(f−1)`` and
+    ``W_j(f+1)`` (hemisphere-aligned): a second difference, so constant angular velocity
+    costs nothing and a flip costs a lot. ``mask`` is 1 on frames whose both neighbours are
+    real consecutive frames of the batch. Within one LM iteration the neighbours are held
+    (a Jacobi sweep over time; they move at the next iteration)."""
+    import jax.numpy as jnp
+
+    rot_j = jnp.asarray(problem.rot_joints)
+    weight = jnp.asarray(problem.smooth, jnp.float32)
+    conj = jnp.asarray([1.0, -1.0, -1.0, -1.0], jnp.float32)
+
+    def midpoints(world_q):
+        wq = world_q[:, rot_j]
+        prev = jnp.concatenate([wq[:1], wq[:-1]], axis=0)
+        nxt = jnp.concatenate([wq[1:], wq[-1:]], axis=0)
+        align = lambda a: a * jnp.where(jnp.sum(a * wq, -1, keepdims=True) < 0, -1.0, 1.0)  # noqa: E731
+        return quat_normalize(align(prev) + align(nxt))
+
+    def smoothness(world_q, mask, mid=None):
+        wq = world_q[:, rot_j]
+        mid = midpoints(world_q) if mid is None else mid
+        rot_r = quat_log(quat_mul(wq, mid * conj.astype(wq.dtype)))
+        rot_w = mask[:, None].astype(wq.dtype) * weight.astype(wq.dtype)[None, :]
+        return rot_r, rot_w, jnp.einsum("brk,brk,br->b", rot_r, rot_r, rot_w)
+
+    smoothness.midpoints = midpoints
+    return smoothness
 
 
 def single_point_joints(problem: Problem) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -150,17 +201,19 @@ def single_point_joints(problem: Problem) -> tuple[np.ndarray, np.ndarray, np.nd
 
 
 def make_dense_step(problem: Problem):
-    """``(world_p, r, lam) -> step``: the same LM step as :func:`make_tree_step` from the
-    explicit Jacobian, ``JᵀWJ`` and a batched Cholesky factorisation (reference)."""
+    """``(world_p, r, lam, w=None) -> step``: the same LM step as :func:`make_tree_step`
+    (point residuals only) from the explicit Jacobian, ``JᵀWJ`` and a batched Cholesky
+    factorisation (reference)."""
     import jax
     import jax.numpy as jnp
 
     jacobian = make_jacobian(problem)
-    sqrt_w = jnp.sqrt(jnp.asarray(problem.weights, jnp.float32))
+    default_w = jnp.asarray(np.r_[problem.point_weights(), np.zeros(len(problem.floor_joints))], jnp.float32)
 
-    def step(world_p, r, lam):
-        jac = jacobian(world_p)
-        rw = (r * sqrt_w[:, None].astype(r.dtype)).reshape(r.shape[0], -1)
+    def step(world_p, r, lam, w=None):
+        w = jnp.broadcast_to(default_w if w is None else w, r.shape[:2]).astype(r.dtype)
+        jac = jacobian(world_p, w)
+        rw = (r * jnp.sqrt(w)[..., None]).reshape(r.shape[0], -1)
         h, g = jnp.einsum("bri,brj->bij", jac, jac), jnp.einsum("bri,br->bi", jac, rw)
         diag = jnp.diagonal(h, axis1=1, axis2=2).reshape(h.shape[0], -1, 3)
         mean = jnp.mean(diag, axis=-1, keepdims=True)
@@ -173,8 +226,8 @@ def make_dense_step(problem: Problem):
 
 
 def make_lm_step(problem: Problem, linear: str = "tree"):
-    """``(world_p, r, lam) -> step (B, P)``: the LM step (``linear``: ``"tree"`` or
-    ``"dense"``) with the twist of every :func:`single_point_joints` joint about the line
+    """``(world_p, r, lam, w=None, rot_r=None, rot_w=None) -> step (B, P)``: the LM step
+    (``linear``: ``"tree"`` or ``"dense"``, which takes no rotation residuals) with the twist of every :func:`single_point_joints` joint about the line
     to its one mapped descendant removed: the loss cannot see it, so left in, float32
     noise would make it drift over the iterations and flip bones by up to 180° between
     frames. The twist then stays where the (smooth) initial guess put it."""
@@ -185,8 +238,8 @@ def make_lm_step(problem: Problem, linear: str = "tree"):
     slot, joint, point = (jnp.asarray(a) for a in single_point_joints(problem))
     n_rot = len(problem.rot_joints)
 
-    def lm_step(world_p, r, lam):
-        step = linear_step(world_p, r, lam)
+    def lm_step(world_p, r, lam, w=None, rot_r=None, rot_w=None):
+        step = linear_step(world_p, r, lam, w, rot_r, rot_w) if linear == "tree" else linear_step(world_p, r, lam, w)
         if slot.size == 0:
             return step
         omega = step[:, : 3 * n_rot].reshape(step.shape[0], n_rot, 3)
@@ -200,11 +253,14 @@ def make_lm_step(problem: Problem, linear: str = "tree"):
 
 
 def _make_lm(problem: Problem, iterations: int, linear: str = "tree"):
-    """A jitted ``(q, t, targets) -> (q, t, loss (B,), initial loss (B,), iterations run)``
-    LM solver (at most ``iterations``; stops early when every frame has converged).
+    """A jitted ``(q, t, targets, w, floor, smooth_mask) -> (q, t, loss (B,), initial loss (B,),
+    iterations run)`` LM solver (at most ``iterations``; stops early when every frame has
+    converged). ``targets (B, M+C, 3)`` and ``w (B, M+C)``: positions and weights of the
+    mapped and contact points; ``floor (B,)``: floor height (centred like the positions);
+    ``smooth_mask (B,)``: frames whose neighbours are real (the temporal term).
 
     ``linear``: ``"tree"`` (:func:`make_tree_step`, default) or ``"dense"``
-    (:func:`make_dense_step`); both solve the same damped system.
+    (:func:`make_dense_step`, without the temporal term); both solve the same damped system.
     """
     import jax
     import jax.numpy as jnp
@@ -212,9 +268,13 @@ def _make_lm(problem: Problem, iterations: int, linear: str = "tree"):
     evaluate = make_residuals(problem)
     apply = make_apply(problem)
     lm_step = make_lm_step(problem, linear)
+    smoothing = problem.smoothing and linear == "tree"
+    smoothness = make_smoothness(problem) if smoothing else None
 
-    def solve(q, t, targets):
-        world_q, world_p, r, loss = evaluate(q, t, targets)
+    def solve(q, t, targets, w, floor, smooth_mask):
+        world_q, world_p, r, loss, w_all = evaluate(q, t, targets, w, floor)
+        if smoothing:
+            loss = loss + smoothness(world_q, smooth_mask)[2]
         initial = loss
         lam = jnp.full(loss.shape, LM_LAMBDA0, loss.dtype)
         stall = jnp.zeros(loss.shape, jnp.int32)  # iterations in a row without real progress
@@ -225,9 +285,17 @@ def _make_lm(problem: Problem, iterations: int, linear: str = "tree"):
             return (i < iterations) & ~jnp.all(frames_done) & (flat < 2)
 
         def body(carry):
-            i, q, t, world_q, world_p, r, loss, lam, stall, flat = carry
-            q2, t2 = apply(q, t, world_q, lm_step(world_p, r, lam))
-            world_q2, world_p2, r2, loss2 = evaluate(q2, t2, targets)
+            i, q, t, world_q, world_p, r, loss, lam, stall, flat, w_all = carry
+            if smoothing:  # neighbours held for this iteration (Jacobi over time)
+                mid = smoothness.midpoints(world_q)
+                rot_r, rot_w, s_loss = smoothness(world_q, smooth_mask, mid)
+                loss = evaluate_loss(r, w_all) + s_loss
+                q2, t2 = apply(q, t, world_q, lm_step(world_p, r, lam, w_all, rot_r, rot_w))
+            else:
+                q2, t2 = apply(q, t, world_q, lm_step(world_p, r, lam, w_all))
+            world_q2, world_p2, r2, loss2, w2 = evaluate(q2, t2, targets, w, floor)
+            if smoothing:
+                loss2 = loss2 + smoothness(world_q2, smooth_mask, mid)[2]
             ok = (loss2 < loss) & jnp.isfinite(loss2)
             gain = jnp.where(ok, (loss - loss2) / jnp.maximum(loss, 1e-30), 0.0)
             stall = jnp.where(gain > LM_RTOL, 0, stall + 1)
@@ -237,13 +305,20 @@ def _make_lm(problem: Problem, iterations: int, linear: str = "tree"):
             flat = jnp.where(total_gain < LM_RTOL_TOTAL, flat + 1, 0)
             lam = jnp.clip(jnp.where(ok, lam * LM_DOWN, lam * LM_UP), LM_LAMBDA_MIN, LM_LAMBDA_MAX)
             return (i + 1, pick(q2, q), pick(t2, t), pick(world_q2, world_q), pick(world_p2, world_p), pick(r2, r),
-                    new_loss, lam, stall, flat)
+                    new_loss, lam, stall, flat, pick(w2, w_all))
 
         carry = jax.lax.while_loop(cond, body, (jnp.int32(0), q, t, world_q, world_p, r, loss, lam, stall,
-                                                jnp.int32(0)))
+                                                jnp.int32(0), w_all))
         return carry[1], carry[2], carry[6], initial, carry[0]
 
     return jax.jit(solve)
+
+
+def evaluate_loss(r, w):
+    """``Σ_p w_p ‖r_p‖²`` per frame of residuals ``r (B, P, 3)`` and weights ``w (B, P)``."""
+    import jax.numpy as jnp
+
+    return jnp.einsum("bmk,bmk,bm->b", r, r, w)
 
 
 def _euler_quats(theta, orders_groups, n_rot):
@@ -341,7 +416,7 @@ def _bucket(n: int, smallest: int = 16) -> int:
 def chunk_plan(n_frames: int, problem: Problem, budget_bytes: float = 64e6) -> tuple[int, int]:
     """``(frames per compiled call, number of calls)``: equal chunks under a memory budget
     (Jacobian and normal matrices, float32), each padded to a :func:`_bucket` size."""
-    n_params, n_rows = max(problem.n_params, 3), 3 * len(problem.mapped)
+    n_params, n_rows = max(problem.n_params, 3), 3 * len(problem.points)
     per_frame = 4 * 3 * (n_rows * n_params + n_params * n_params)
     largest = int(min(4096, max(64, budget_bytes // per_frame)))
     calls = -(-n_frames // largest)
@@ -376,7 +451,8 @@ class Solution:
 
 def solve(problem: Problem, q0: np.ndarray, t0: np.ndarray, targets: np.ndarray, method: str = "lm",
           iterations: int | None = None, chunk: int | None = None, lr: float = ADAM_LR,
-          progress: Progress | None = None) -> Solution:
+          progress: Progress | None = None, weights: np.ndarray | None = None,
+          floor: np.ndarray | None = None) -> Solution:
     """Optimise rotations (and free translations) of all frames.
 
     Args:
@@ -390,6 +466,13 @@ def solve(problem: Problem, q0: np.ndarray, t0: np.ndarray, targets: np.ndarray,
         lr: Adam's learning rate.
         progress: optional :class:`usdmotion.progress.Progress`, called ``(frames done, n_frames, message)``
             after every chunk.
+        weights: ``(F, M + C)`` per-frame weights of the mapped and contact points (default:
+            the problem's static weights; contact terms off). ``targets`` is then
+            ``(F, M + C, 3)``.
+        floor: ``(F,)`` floor height on the up axis, centred like ``t0`` (floor term).
+
+    LM solves every chunk of consecutive frames in one compiled call; the temporal term
+    (``problem.smooth``) links neighbouring frames inside a chunk (not across chunks).
     """
 
     import jax
@@ -398,6 +481,15 @@ def solve(problem: Problem, q0: np.ndarray, t0: np.ndarray, targets: np.ndarray,
 
     if method not in ("lm", "adam"):
         raise ValueError(f"unknown method {method!r}")
+    extra = len(problem.contact_joints) or len(problem.floor_joints) or problem.smoothing
+    if method == "adam" and extra:
+        raise ValueError("the contact, floor and temporal terms need method 'lm'")
+    n_near = len(problem.mapped) + len(problem.contact_joints)
+    if weights is None:
+        weights = np.broadcast_to(problem.point_weights(), (q0.shape[0], n_near))
+    if targets.shape[1] < n_near:
+        targets = np.concatenate([targets, np.zeros((targets.shape[0], n_near - targets.shape[1], 3))], axis=1)
+    floor = np.zeros(q0.shape[0]) if floor is None else np.asarray(floor, np.float64)
     iterations = int(iterations if iterations is not None else (LM_ITERATIONS if method == "lm" else ADAM_ITERATIONS))
     n_frames = q0.shape[0]
     chunk = chunk or chunk_plan(n_frames, problem)[0]
@@ -413,6 +505,11 @@ def solve(problem: Problem, q0: np.ndarray, t0: np.ndarray, targets: np.ndarray,
         args = [jnp.asarray(a[pad], jnp.float32) for a in (q0, t0, targets)]
         if theta0 is not None:
             args.append(jnp.asarray(theta0[pad], jnp.float32))
+        else:
+            inner = np.zeros(chunk, np.float32)  # frames with two real neighbours in this chunk
+            inner[1: stop - start - 1] = 1.0
+            args += [jnp.asarray(weights[pad], jnp.float32), jnp.asarray(floor[pad], jnp.float32),
+                     jnp.asarray(inner)]
         fn, seconds = _executable(problem, method, iterations, float(lr), args)
         compile_s += seconds
         began = time.perf_counter()
