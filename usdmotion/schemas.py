@@ -18,7 +18,8 @@ from typing import Any
 from usdmotion.errors import InputError
 from usdmotion.resources import resource_path
 
-SCHEMA_NAMES = ("limits", "synthesis", "body-segments", "segments", "edit-pipeline", "jointmap", "rigprofile")
+SCHEMA_NAMES = ("limits", "synthesis", "body-segments", "segments", "edit-pipeline", "jointmap", "rigprofile",
+                "contacts")
 
 
 @lru_cache(maxsize=None)
