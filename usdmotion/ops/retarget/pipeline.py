@@ -34,15 +34,21 @@ from usdmotion.kinematics import fk_arrays, world_rotations_positions
 from usdmotion.motion import POSITION_CHANNELS, Motion
 from usdmotion.ops.retarget.hierarchy import (Rig, RetargetError, UnitsMismatchError, adapt_offsets, ancestor_matrix,
                                      derive_rig, mapped_chains, rig_from_motion, source_bone_lengths)
+from usdmotion.ops.retarget import quality as retarget_quality
 from usdmotion.ops.retarget import report as retarget_report
+from usdmotion.ops.retarget.contact_terms import FLOOR_WEIGHT, ROOT_SCALES, contact_terms
 from usdmotion.ops.retarget.jointmap import JointMap, resolve_map
 from usdmotion.ops.retarget.losses import frame_losses
 from usdmotion.ops.retarget.problem import Problem
 from usdmotion.ops.retarget.solve import solve
+from usdmotion.ops.retarget.unmapped import continuous_hemisphere, distribute_twist, floor_root, twist_bones
 from usdmotion.progress import Progress
 from usdmotion.rotations import matrix_to_quat, quat_between, quat_conjugate, quat_mul, quat_rotate
 
 METHODS = ("lm", "adam")
+#: Default weight of the temporal term (rigs from files): a radian of rotation acceleration
+#: weighs this share of the squared distances the joint moves (see :func:`smooth_scale`).
+SMOOTH = 0.1
 #: Sizes (target / source, after unit conversion) outside this range mean the units disagree.
 SIZE_RATIO_RANGE = (0.5, 2.0)
 
@@ -378,18 +384,43 @@ def _choose_init(setup: Setup, init: str, method: str) -> str:
     return min(losses, key=losses.get)  # one choice for the whole take keeps twists continuous
 
 
-def _problem(setup: Setup):
+def _problem(setup: Setup, terms=None, smooth: float = 0.0):
     channels = setup.rig.channels
     orders = tuple(rotation_order(channels[j]) if channels is not None and channels[j] else "ZXY"
                    for j in setup.rot_joints)
     mapped = setup.mapped
-    return Problem(setup.rig.parents, mapped, setup.weights[mapped], setup.rot_joints, setup.trans_joints, orders)
+    extra = {}
+    if smooth > 0:
+        extra["smooth"] = smooth * smooth_scale(setup)
+    if terms is not None:
+        extra.update(contact_joints=terms.joints, floor_joints=moved_joints(setup), up=terms.up,
+                     floor_weight=FLOOR_WEIGHT)
+    return Problem(setup.rig.parents, mapped, setup.weights[mapped], setup.rot_joints, setup.trans_joints, orders,
+                   **extra)
+
+
+def moved_joints(setup: Setup) -> np.ndarray:
+    """Joints that some optimised rotation or translation moves (the floor term's points)."""
+    sub = ancestor_matrix(setup.rig.parents) | np.eye(setup.rig.n_joints, dtype=bool)
+    moved = sub[setup.rot_joints].any(axis=0) | sub[setup.trans_joints].any(axis=0)
+    return np.flatnonzero(moved)
+
+
+def smooth_scale(setup: Setup) -> np.ndarray:
+    """``(R,)`` per rotation joint ``Σ_m w_m ‖rest(m) − rest(j)‖²`` over its mapped descendants
+    (units²): a rotation error of ``θ`` moves them by about ``θ`` times their distance, so the
+    temporal term weighs a radian like the positions it moves."""
+    rest = fk_arrays(_identity((setup.rig.n_joints,)), setup.offsets, setup.rig.parents)[1]
+    anc = ancestor_matrix(setup.rig.parents)[setup.rot_joints][:, setup.mapped]  # (R, M)
+    d2 = np.sum((rest[setup.mapped][None] - rest[setup.rot_joints][:, None]) ** 2, axis=-1)
+    return np.sum(anc * d2 * setup.weights[setup.mapped][None], axis=1)
 
 
 def retarget(source: Motion, target: Motion | None = None, *, remove=(), add=(), joint_map: JointMap | None = None,
              method: str = "lm", iterations: int | None = None, lengths: str = "source", directions: str = "auto",
              scale="units", init: str = "auto", local: bool = False, source_path: str | None = None,
-             target_path: str | None = None, progress: Progress | None = None) -> RetargetResult:
+             target_path: str | None = None, progress: Progress | None = None, contacts=None,
+             root_scale: str = "off", smooth: float | None = None, compare: bool = False) -> RetargetResult:
     """Retarget ``source`` onto ``target`` (a skeleton; its animation is ignored) or onto
     the source's own skeleton with joints removed/added.
 
@@ -411,6 +442,14 @@ def retarget(source: Motion, target: Motion | None = None, *, remove=(), add=(),
         source_path, target_path: file names for messages and the report.
         progress: optional :class:`usdmotion.progress.Progress` ``(frames done, n_frames, message)``,
             called after every chunk.
+        contacts: ``None`` (off), ``"auto"`` (:func:`usdmotion.ops.contacts.detect_contacts`
+            on the source) or the source's :class:`~usdmotion.ops.contacts.FootContacts`: the
+            contact-aware solve (:mod:`usdmotion.ops.retarget.contact_terms`; needs ``lm``).
+        root_scale: ``"off"`` or ``"legs"``: scale the root trajectory by the leg-length ratio.
+        smooth: weight of the temporal term (default :data:`SMOOTH` for rigs from files,
+            0 for derived rigs, whose composed initial guess is already continuous).
+        compare: add the plain solve's and rotation copying's metrics to the report
+            (``report["compare"]``; the plain solve runs a second time).
 
     Returns:
         :class:`RetargetResult` with the new motion (target skeleton, channel layout,
@@ -427,28 +466,98 @@ def retarget(source: Motion, target: Motion | None = None, *, remove=(), add=(),
     setup = prepare(source, target, remove=remove, add=add, joint_map=joint_map, lengths=lengths,
                     directions=directions, scale=scale, local=local, target_path=target_path,
                     source_path=source_path)
+    if root_scale not in ROOT_SCALES:
+        raise RetargetError(f"root_scale must be one of {', '.join(ROOT_SCALES)}, got {root_scale!r}")
+    terms = None
+    if contacts is not None and contacts != "off":
+        if method != "lm":
+            raise RetargetError("the contact-aware solve needs --method lm")
+        if isinstance(contacts, str):
+            if contacts != "auto":
+                raise RetargetError(f"contacts must be 'auto', 'off' or contacts read from a file, got {contacts!r}")
+            from usdmotion.ops.contacts import detect_contacts
+
+            contacts = detect_contacts(source, source=source_path)
+        terms = contact_terms(setup, source, contacts, root_scale)
+        if terms is not None:  # the root trajectory scaled: every target moves with it
+            setup.targets[:, setup.mapped] += terms.shift[:, None]
+            setup.translations[:, setup.anchor] += terms.shift
+    if smooth is None:
+        smooth = SMOOTH if setup.mode == "target" and method == "lm" else 0.0
     init_name = _choose_init(setup, init, method)
     q0 = setup.inits[init_name]
-    centre = setup.translations[:, setup.anchor].copy()
-    t0 = setup.translations.copy()
-    t0[:, setup.anchor] -= centre
-    targets = setup.targets[:, setup.mapped] - centre[:, None]
     prepared = time.perf_counter()
-    solution = solve(_problem(setup), q0, t0, targets, method=method, iterations=iterations, progress=progress)
-    q, t = solution.q, solution.t
-    t[:, setup.anchor] += centre
-    # keep, per frame, the better of the initial guess and the float32 solution in float64
-    args = (setup.rig.parents, setup.mapped, setup.targets, setup.weights)
-    worse = frame_losses(t, q, *args) > frame_losses(setup.translations, q0, *args)
-    q[worse], t[worse] = q0[worse], setup.translations[worse]
+    q, t, solution = _solve(setup, q0, terms, smooth, method, iterations, progress)
     motion = _output_motion(source, setup, q, t)
     report = retarget_report.build(source, setup, motion, q0, init_name, method, iterations,
                                    {"setup": prepared - start, "compile": solution.compile_s, "solve": solution.run_s},
                                    source_path, target_path)
     report["chunks"] = {"frames_per_call": solution.chunk, "calls": solution.calls}
     report["iterations_run"] = solution.iterations
+    report["smooth"] = float(smooth)
+    report["quality"] = retarget_quality.quality(source, setup, motion, terms)
+    if terms is not None:
+        report["contacts"] = retarget_quality.contacts_summary(terms, root_scale)
+    if compare:
+        report["compare"] = _compare(source, setup, motion, q0, terms, smooth, iterations)
     report["time_s"]["total"] = time.perf_counter() - start
     return RetargetResult(motion, report)
+
+
+def _solve(setup: Setup, q0: np.ndarray, terms, smooth: float, method: str, iterations, progress):
+    """Step 2 and the unmapped-joint rules: ``(q (F,J,4), t (F,J,3), Solution)``."""
+    centre = setup.translations[:, setup.anchor].copy()
+    t0 = setup.translations.copy()
+    t0[:, setup.anchor] -= centre
+    targets = setup.targets[:, setup.mapped] - centre[:, None]
+    problem = _problem(setup, terms, smooth)
+    weights = floor = None
+    if terms is not None:
+        targets = np.concatenate([targets, terms.targets - centre[:, None]], axis=1)
+        weights = np.concatenate([np.broadcast_to(problem.weights, (len(q0), len(problem.weights))), terms.weights],
+                                 axis=1)
+        floor = terms.floor - centre[:, terms.up]
+    solution = solve(problem, q0, t0, targets, method=method, iterations=iterations, progress=progress,
+                     weights=weights, floor=floor)
+    q, t = solution.q, solution.t
+    t[:, setup.anchor] += centre
+    if terms is None and not problem.smoothing:
+        # keep, per frame, the better of the initial guess and the float32 solution in float64
+        args = (setup.rig.parents, setup.mapped, setup.targets, setup.weights)
+        worse = frame_losses(t, q, *args) > frame_losses(setup.translations, q0, *args)
+        q[worse], t[worse] = q0[worse], setup.translations[worse]
+    q, t = _unmapped_rules(setup, q, t, terms)
+    return continuous_hemisphere(q), t, solution
+
+
+def _unmapped_rules(setup: Setup, q: np.ndarray, t: np.ndarray, terms) -> tuple[np.ndarray, np.ndarray]:
+    """Twist bones share their driver's twist; a floor root bone follows the hips (module ``unmapped``)."""
+    rig = setup.rig
+    if setup.mode != "target":
+        return q, t
+    driven = np.zeros(rig.n_joints, bool)
+    driven[setup.mapped] = True
+    driven[setup.rot_joints] = True
+    q = distribute_twist(q, twist_bones(rig.joint_names, rig.parents, setup.offsets, driven, rig.end_sites))
+    if setup.top != 0 and setup.source_of[0] < 0 and 0 not in set(setup.rot_joints.tolist()):
+        up = 1 if rig.up_axis == "Y" else 2
+        if terms is not None:
+            floor = terms.floor
+        else:
+            floor = float(np.percentile(fk_arrays(q, t, rig.parents)[1][..., up].min(axis=1), 2.0))
+        q, t = floor_root(q, t, rig.parents, setup.top, floor, up, setup.anchor == setup.top)
+    return q, t
+
+
+def _compare(source: Motion, setup: Setup, motion: Motion, q0: np.ndarray, terms, smooth, iterations) -> dict:
+    """Quality of rotation copying, the plain solve and this result side by side."""
+    copy_q, copy_t = _unmapped_rules(setup, setup.inits["copy"], setup.translations.copy(), terms)
+    rows = {"rotation_copy": _output_motion(source, setup, continuous_hemisphere(copy_q), copy_t)}
+    if terms is not None:
+        q, t, solution = _solve(setup, q0, None, smooth, "lm", iterations, None)
+        rows["plain"] = _output_motion(source, setup, q, t)
+    rows["result"] = motion
+    return {name: retarget_quality.quality(source, setup, m, terms) for name, m in rows.items()}
 
 
 def _output_motion(source: Motion, setup: Setup, q: np.ndarray, t: np.ndarray) -> Motion:
