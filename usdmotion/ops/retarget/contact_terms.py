@@ -15,7 +15,11 @@ to arrays in the target's frame and units (the solver's, before centring):
   horizontally the mean of the source joint's position over the interval (scaled about
   the same ground point when the root is), vertically its planted level
   ``floor + k · clearance`` (the target's ankle sits ``k`` times as high as the source's);
-* every target joint is kept above the floor (a one-sided term).
+* every target joint is kept above the floor (a one-sided term);
+* between contacts the contact joint follows its (root-scaled) source position plus an
+  offset blended linearly from the end of one contact's fixed point to the start of the
+  next (footskate clean-up, Kovar et al. 2002), at :data:`SWING_SHARE` of the weight, so
+  it never jumps onto or off a fixed point.
 
 Weights (per unit² of target length; the mapped joints weigh 1): :data:`CONTACT_WEIGHT`
 for a planted joint, :data:`FLOOR_WEIGHT` per unit² below the floor.
@@ -34,6 +38,10 @@ CONTACT_WEIGHT = 100.0
 #: Weight of a joint's depth below the floor (one-sided).
 FLOOR_WEIGHT = 1000.0
 ROOT_SCALES = ("off", "legs")
+#: Between contacts the contact joint follows the source plus an offset blended from the
+#: end of one contact to the start of the next, with this share of the contact weight, so
+#: a foot never jumps onto or off its fixed point.
+SWING_SHARE = 0.1
 
 
 @dataclass(frozen=True, eq=False)
@@ -125,9 +133,23 @@ def contact_terms(setup, source, contacts: FootContacts, root_scale: str = "off"
     targets = np.zeros((n_frames, len(keep), 3))
     origin = centre[0] * _horizontal(up)
     for c, col in enumerate(keep):
-        for a, b in contacts.intervals(col):
-            point = origin + kh * (src_pos[a:b, c].mean(axis=0) - origin)
-            point[up] = level[c]
+        scaled = origin + kh * (src_pos[:, c] - origin)  # the source joint, root-scaled
+        scaled[:, up] = floor + k * (src_pos[:, c, up] - floor)
+        intervals = contacts.intervals(col)
+        if not len(intervals):
+            continue
+        points = np.array([scaled[a:b].mean(axis=0) for a, b in intervals])
+        points[:, up] = level[c]
+        # offsets of the fixed points from the source at each contact's first and last frame,
+        # blended linearly over the frames between contacts (footskate clean-up)
+        keys = np.stack([intervals[:, 0], intervals[:, 1] - 1], axis=1).ravel()
+        offs = np.stack([points - scaled[intervals[:, 0]], points - scaled[intervals[:, 1] - 1]], axis=1)
+        offs = offs.reshape(-1, 3)
+        frames = np.arange(n_frames)
+        blended = np.stack([np.interp(frames, keys, offs[:, i]) for i in range(3)], axis=1)
+        targets[:, c] = scaled + blended
+        weights[:, c] = SWING_SHARE * contact_weight
+        for (a, b), point in zip(intervals, points):
             targets[a:b, c] = point
             weights[a:b, c] = contact_weight
     restated = replace(contacts, joints=tuple(rig.joint_names[j] for j in joints), indices=joints,

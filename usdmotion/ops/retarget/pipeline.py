@@ -46,9 +46,11 @@ from usdmotion.progress import Progress
 from usdmotion.rotations import matrix_to_quat, quat_between, quat_conjugate, quat_mul, quat_rotate
 
 METHODS = ("lm", "adam")
-#: Default weight of the temporal term (rigs from files): a radian of rotation acceleration
-#: weighs this share of the squared distances the joint moves (see :func:`smooth_scale`).
-SMOOTH = 0.1
+#: Default weight (rigs from files) of the pull of every optimised joint's world rotation
+#: towards the continuous initial guess: a radian weighs this share of the squared
+#: distances the joint moves (see :func:`smooth_scale`); small enough to leave what the
+#: positions determine alone (RMS +0.x %), large enough to hold what they barely determine.
+PRIOR = 0.01
 #: Sizes (target / source, after unit conversion) outside this range mean the units disagree.
 SIZE_RATIO_RANGE = (0.5, 2.0)
 
@@ -299,7 +301,7 @@ def _initial_guesses(source: Motion, setup: Setup, up) -> dict:
         if up is not None:
             copied[:, setup.anchor] = quat_mul(up, copied[:, setup.anchor])
         inits["copy"] = copied
-    inits["aim"] = aim_init(setup)
+    inits["aim"] = aim_init(setup, copied)
     return inits
 
 
@@ -322,11 +324,16 @@ def _rays(rig: Rig, offsets: np.ndarray, mapped_mask: np.ndarray) -> list[list[t
     return rays
 
 
-def aim_init(setup: Setup) -> np.ndarray:
+def aim_init(setup: Setup, copied: np.ndarray | None = None) -> np.ndarray:
     """Heuristic rotations ``(F, J, 4)``: every optimised joint aims its rest bone(s) at the
-    source direction(s) of its nearest mapped descendants (one: shortest swing from the
-    parent's frame; several: least-squares rotation, Kabsch), joint by joint from the root,
-    all frames at once."""
+    source direction(s) of its nearest mapped descendants (one: shortest swing; several:
+    least-squares rotation, Kabsch), joint by joint from the root, all frames at once.
+
+    One bone: the swing starts from the parent's frame (identity local rotation) or, with
+    ``copied`` (the source's local rotations), from the copied rotation, whichever stays
+    farther from a half turn over the whole take: a shortest swing near 180° picks its
+    twist at random, and a take-wide choice keeps the twist continuous (with the copied
+    start it is the source's own twist)."""
     rig, offsets = setup.rig, setup.offsets
     n_frames = setup.targets.shape[0]
     mapped_mask = np.zeros(rig.n_joints, bool)
@@ -343,19 +350,47 @@ def aim_init(setup: Setup) -> np.ndarray:
         parent_p = world_p[:, p] if p >= 0 else np.zeros((n_frames, 3))
         world_p[:, j] = parent_p + quat_rotate(parent_q, setup.translations[:, j])
         if optimised[j] and rays[j]:
-            local[:, j] = quat_mul(quat_conjugate(parent_q), _aim(parent_q, world_p[:, j], rays[j], setup.targets))
+            bases = [parent_q] if copied is None else [parent_q, quat_mul(parent_q, copied[:, j])]
+            local[:, j] = quat_mul(quat_conjugate(parent_q), _aim(bases, world_p[:, j], rays[j], setup.targets))
         world_q[:, j] = quat_mul(parent_q, local[:, j])
     return local
 
 
-def _aim(parent_q, origin, rays, targets) -> np.ndarray:
-    """World rotation ``(F, 4)`` aiming rest vectors (joint frame) at target directions."""
+#: Several rays count as one direction (swing, not Kabsch) when the second singular value
+#: of their correlation is below this share of the first: a roll about nearly collinear
+#: rays is decided by noise and would flip between frames.
+COLLINEAR = 0.05
 
 
+def _swing(bases, u, v) -> np.ndarray:
+    """World rotations ``(F, 4)`` turning rest vector ``u (3,)`` carried by one of ``bases``
+    (``(F, 4)`` world rotations) onto ``v (F, 3)`` by the shortest arc; the base whose
+    largest swing over the take is smallest. A further base is always tried: the parent's
+    frame (``bases[0]``) turned once, for the whole take, so ``u`` points along the mean
+    direction of ``v`` in that frame — its swings stay far from a half turn unless the
+    bone sweeps more than a hemisphere around its parent."""
+    mean = np.sum(quat_rotate(quat_conjugate(bases[0]), v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True),
+                                                                        1e-300)), axis=0)
+    if np.linalg.norm(mean) > 1e-9 and np.linalg.norm(u) > 1e-12:
+        bases = [*bases, quat_mul(bases[0], quat_between(u, mean))]
+    best, best_angle = None, np.inf
+    for base in bases:
+        carried = quat_rotate(base, u)
+        cos = np.sum(carried * v, -1) / np.maximum(np.linalg.norm(carried, axis=-1) * np.linalg.norm(v, axis=-1),
+                                                   1e-300)
+        angle = float(np.arccos(np.clip(cos, -1.0, 1.0)).max())
+        if angle < best_angle - 1e-9:
+            best, best_angle = quat_mul(quat_between(carried, v), base), angle
+    return best
+
+
+def _aim(bases, origin, rays, targets) -> np.ndarray:
+    """World rotation ``(F, 4)`` aiming rest vectors (joint frame) at target directions;
+    ``bases[0]`` is the parent's world rotation."""
+    parent_q = bases[0]
     u = np.stack([v for _, v in rays])  # (R, 3) joint frame
     v = np.stack([targets[:, d] - origin for d, _ in rays], axis=1)  # (F, R, 3) world
-    carried = quat_rotate(parent_q[:, None], u[None])  # rest vectors in the world, local rotation = identity
-    swing = quat_mul(quat_between(carried.sum(axis=1), v.sum(axis=1)), parent_q)
+    swing = _swing(bases, u.sum(axis=0), v.sum(axis=1))
     if len(rays) < 2:
         return swing
     h = np.einsum("frk,rl->fkl", v, u)  # Σ v uᵀ
@@ -364,7 +399,7 @@ def _aim(parent_q, origin, rays, targets) -> np.ndarray:
     fix = np.ones((len(d), 3))
     fix[:, 2] = d
     kabsch = matrix_to_quat(w_ @ (fix[:, :, None] * vt))
-    planar = s[:, 1] > 1e-6 * np.maximum(s[:, 0], 1e-300)
+    planar = s[:, 1] > COLLINEAR * np.maximum(s[:, 0], 1e-300)
     return np.where(planar[:, None], kabsch, swing)
 
 
@@ -384,7 +419,7 @@ def _choose_init(setup: Setup, init: str, method: str) -> str:
     return min(losses, key=losses.get)  # one choice for the whole take keeps twists continuous
 
 
-def _problem(setup: Setup, terms=None, smooth: float = 0.0):
+def _problem(setup: Setup, terms=None, smooth: float = 0.0, prior: float = 0.0):
     channels = setup.rig.channels
     orders = tuple(rotation_order(channels[j]) if channels is not None and channels[j] else "ZXY"
                    for j in setup.rot_joints)
@@ -392,6 +427,8 @@ def _problem(setup: Setup, terms=None, smooth: float = 0.0):
     extra = {}
     if smooth > 0:
         extra["smooth"] = smooth * smooth_scale(setup)
+    if prior > 0:
+        extra["prior"] = prior * smooth_scale(setup)
     if terms is not None:
         extra.update(contact_joints=terms.joints, floor_joints=moved_joints(setup), up=terms.up,
                      floor_weight=FLOOR_WEIGHT)
@@ -420,7 +457,8 @@ def retarget(source: Motion, target: Motion | None = None, *, remove=(), add=(),
              method: str = "lm", iterations: int | None = None, lengths: str = "source", directions: str = "auto",
              scale="units", init: str = "auto", local: bool = False, source_path: str | None = None,
              target_path: str | None = None, progress: Progress | None = None, contacts=None,
-             root_scale: str = "off", smooth: float | None = None, compare: bool = False) -> RetargetResult:
+             root_scale: str = "off", prior: float | None = None, smooth: float = 0.0,
+             compare: bool = False) -> RetargetResult:
     """Retarget ``source`` onto ``target`` (a skeleton; its animation is ignored) or onto
     the source's own skeleton with joints removed/added.
 
@@ -446,8 +484,11 @@ def retarget(source: Motion, target: Motion | None = None, *, remove=(), add=(),
             on the source) or the source's :class:`~usdmotion.ops.contacts.FootContacts`: the
             contact-aware solve (:mod:`usdmotion.ops.retarget.contact_terms`; needs ``lm``).
         root_scale: ``"off"`` or ``"legs"``: scale the root trajectory by the leg-length ratio.
-        smooth: weight of the temporal term (default :data:`SMOOTH` for rigs from files,
-            0 for derived rigs, whose composed initial guess is already continuous).
+        prior: weight of the pull towards the initial guess (default :data:`PRIOR` for rigs
+            from files, 0 for derived rigs, whose composed initial guess is already exact).
+        smooth: weight of the temporal term (second difference of world rotations over
+            neighbouring frames, solved as a Jacobi sweep inside the batched solve;
+            default 0: it slowed convergence and did not remove flips in our tests).
         compare: add the plain solve's and rotation copying's metrics to the report
             (``report["compare"]``; the plain solve runs a second time).
 
@@ -482,35 +523,38 @@ def retarget(source: Motion, target: Motion | None = None, *, remove=(), add=(),
         if terms is not None:  # the root trajectory scaled: every target moves with it
             setup.targets[:, setup.mapped] += terms.shift[:, None]
             setup.translations[:, setup.anchor] += terms.shift
-    if smooth is None:
-        smooth = SMOOTH if setup.mode == "target" and method == "lm" else 0.0
+    if prior is None:
+        prior = PRIOR if setup.mode == "target" and method == "lm" else 0.0
+    rot_terms = (float(smooth), float(prior))
     init_name = _choose_init(setup, init, method)
     q0 = setup.inits[init_name]
     prepared = time.perf_counter()
-    q, t, solution = _solve(setup, q0, terms, smooth, method, iterations, progress)
+    q, t, solution = _solve(setup, q0, terms, rot_terms, method, iterations, progress)
     motion = _output_motion(source, setup, q, t)
     report = retarget_report.build(source, setup, motion, q0, init_name, method, iterations,
                                    {"setup": prepared - start, "compile": solution.compile_s, "solve": solution.run_s},
                                    source_path, target_path)
     report["chunks"] = {"frames_per_call": solution.chunk, "calls": solution.calls}
     report["iterations_run"] = solution.iterations
-    report["smooth"] = float(smooth)
+    report["rotation_terms"] = {"smooth": rot_terms[0], "prior": rot_terms[1]}
     report["quality"] = retarget_quality.quality(source, setup, motion, terms)
     if terms is not None:
         report["contacts"] = retarget_quality.contacts_summary(terms, root_scale)
     if compare:
-        report["compare"] = _compare(source, setup, motion, q0, terms, smooth, iterations)
+        report["compare"] = _compare(source, setup, motion, q0, terms, rot_terms, iterations)
     report["time_s"]["total"] = time.perf_counter() - start
     return RetargetResult(motion, report)
 
 
-def _solve(setup: Setup, q0: np.ndarray, terms, smooth: float, method: str, iterations, progress):
-    """Step 2 and the unmapped-joint rules: ``(q (F,J,4), t (F,J,3), Solution)``."""
+def _solve(setup: Setup, q0: np.ndarray, terms, rot_terms, method: str, iterations, progress,
+           floor_height: float | None = None):
+    """Step 2 and the unmapped-joint rules: ``(q (F,J,4), t (F,J,3), Solution)``;
+    ``floor_height`` (target units) for a floor root bone (default: the contacts' floor or estimated)."""
     centre = setup.translations[:, setup.anchor].copy()
     t0 = setup.translations.copy()
     t0[:, setup.anchor] -= centre
     targets = setup.targets[:, setup.mapped] - centre[:, None]
-    problem = _problem(setup, terms, smooth)
+    problem = _problem(setup, terms, *rot_terms)
     weights = floor = None
     if terms is not None:
         targets = np.concatenate([targets, terms.targets - centre[:, None]], axis=1)
@@ -521,16 +565,16 @@ def _solve(setup: Setup, q0: np.ndarray, terms, smooth: float, method: str, iter
                      weights=weights, floor=floor)
     q, t = solution.q, solution.t
     t[:, setup.anchor] += centre
-    if terms is None and not problem.smoothing:
+    if terms is None and not problem.smoothing and not problem.anchored:
         # keep, per frame, the better of the initial guess and the float32 solution in float64
         args = (setup.rig.parents, setup.mapped, setup.targets, setup.weights)
         worse = frame_losses(t, q, *args) > frame_losses(setup.translations, q0, *args)
         q[worse], t[worse] = q0[worse], setup.translations[worse]
-    q, t = _unmapped_rules(setup, q, t, terms)
+    q, t = _unmapped_rules(setup, q, t, terms.floor if terms is not None else floor_height)
     return continuous_hemisphere(q), t, solution
 
 
-def _unmapped_rules(setup: Setup, q: np.ndarray, t: np.ndarray, terms) -> tuple[np.ndarray, np.ndarray]:
+def _unmapped_rules(setup: Setup, q: np.ndarray, t: np.ndarray, floor: float | None) -> tuple[np.ndarray, np.ndarray]:
     """Twist bones share their driver's twist; a floor root bone follows the hips (module ``unmapped``)."""
     rig = setup.rig
     if setup.mode != "target":
@@ -541,20 +585,19 @@ def _unmapped_rules(setup: Setup, q: np.ndarray, t: np.ndarray, terms) -> tuple[
     q = distribute_twist(q, twist_bones(rig.joint_names, rig.parents, setup.offsets, driven, rig.end_sites))
     if setup.top != 0 and setup.source_of[0] < 0 and 0 not in set(setup.rot_joints.tolist()):
         up = 1 if rig.up_axis == "Y" else 2
-        if terms is not None:
-            floor = terms.floor
-        else:
+        if floor is None:  # the 2nd percentile of the lowest joint per frame
             floor = float(np.percentile(fk_arrays(q, t, rig.parents)[1][..., up].min(axis=1), 2.0))
         q, t = floor_root(q, t, rig.parents, setup.top, floor, up, setup.anchor == setup.top)
     return q, t
 
 
-def _compare(source: Motion, setup: Setup, motion: Motion, q0: np.ndarray, terms, smooth, iterations) -> dict:
+def _compare(source: Motion, setup: Setup, motion: Motion, q0: np.ndarray, terms, rot_terms, iterations) -> dict:
     """Quality of rotation copying, the plain solve and this result side by side."""
-    copy_q, copy_t = _unmapped_rules(setup, setup.inits["copy"], setup.translations.copy(), terms)
+    floor = terms.floor if terms is not None else None
+    copy_q, copy_t = _unmapped_rules(setup, setup.inits["copy"], setup.translations.copy(), floor)
     rows = {"rotation_copy": _output_motion(source, setup, continuous_hemisphere(copy_q), copy_t)}
     if terms is not None:
-        q, t, solution = _solve(setup, q0, None, smooth, "lm", iterations, None)
+        q, t, solution = _solve(setup, q0, None, rot_terms, "lm", iterations, None, floor)
         rows["plain"] = _output_motion(source, setup, q, t)
     rows["result"] = motion
     return {name: retarget_quality.quality(source, setup, m, terms) for name, m in rows.items()}

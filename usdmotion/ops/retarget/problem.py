@@ -53,6 +53,10 @@ class Problem:
         smooth: ``(R,)`` weight per rotation joint of the temporal term (units² per
             radian², 0 = off): the world rotation's distance from the midpoint of its
             neighbouring frames' (a second difference: constant angular velocity is free).
+        prior: ``(R,)`` weight per rotation joint of the distance of its world rotation from
+            the initial guess's (units² per radian², 0 = off): directions the positions
+            barely determine (the twist of a nearly straight limb) stay where the
+            continuous initial guess put them instead of wandering between frames.
     """
 
     parents: np.ndarray
@@ -66,12 +70,14 @@ class Problem:
     up: int = 1
     floor_weight: float = 0.0
     smooth: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    prior: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     def key(self) -> tuple:
         return (tuple(self.parents.tolist()), tuple(self.mapped.tolist()), tuple(np.round(self.weights, 12).tolist()),
                 tuple(self.rot_joints.tolist()), tuple(self.trans_joints.tolist()), self.orders,
                 tuple(self.contact_joints.tolist()), tuple(self.floor_joints.tolist()), self.up,
-                round(float(self.floor_weight), 12), tuple(np.round(self.smooth, 12).tolist()))
+                round(float(self.floor_weight), 12), tuple(np.round(self.smooth, 12).tolist()),
+                tuple(np.round(self.prior, 12).tolist()))
 
     @property
     def points(self) -> np.ndarray:
@@ -81,6 +87,10 @@ class Problem:
     @property
     def smoothing(self) -> bool:
         return bool(len(self.smooth)) and bool(np.any(self.smooth > 0))
+
+    @property
+    def anchored(self) -> bool:
+        return bool(len(self.prior)) and bool(np.any(self.prior > 0))
 
     def point_weights(self) -> np.ndarray:
         """``(M + C,)`` default weights of the mapped and contact points (contacts: 0, i.e. off)."""

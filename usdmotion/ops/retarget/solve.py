@@ -168,7 +168,8 @@ def make_smoothness(problem: Problem):
     import jax.numpy as jnp
 
     rot_j = jnp.asarray(problem.rot_joints)
-    weight = jnp.asarray(problem.smooth, jnp.float32)
+    weight = jnp.asarray(problem.smooth if problem.smoothing else np.zeros(len(problem.rot_joints)), jnp.float32)
+    prior_w = jnp.asarray(problem.prior if problem.anchored else np.zeros(len(problem.rot_joints)), jnp.float32)
     conj = jnp.asarray([1.0, -1.0, -1.0, -1.0], jnp.float32)
 
     def midpoints(world_q):
@@ -178,12 +179,23 @@ def make_smoothness(problem: Problem):
         align = lambda a: a * jnp.where(jnp.sum(a * wq, -1, keepdims=True) < 0, -1.0, 1.0)  # noqa: E731
         return quat_normalize(align(prev) + align(nxt))
 
-    def smoothness(world_q, mask, mid=None):
+    def smoothness(world_q, mask, mid=None, prior=None):
+        """Both rotation terms folded into one residual per joint (the weighted mean of
+        the two residuals, the summed weight) and their loss."""
         wq = world_q[:, rot_j]
-        mid = midpoints(world_q) if mid is None else mid
-        rot_r = quat_log(quat_mul(wq, mid * conj.astype(wq.dtype)))
-        rot_w = mask[:, None].astype(wq.dtype) * weight.astype(wq.dtype)[None, :]
-        return rot_r, rot_w, jnp.einsum("brk,brk,br->b", rot_r, rot_r, rot_w)
+        rot_r = jnp.zeros(wq.shape[:-1] + (3,), wq.dtype)
+        rot_w = jnp.zeros(wq.shape[:-1], wq.dtype)
+        loss = jnp.zeros(wq.shape[:1], wq.dtype)
+        if problem.smoothing:
+            mid = midpoints(world_q) if mid is None else mid
+            r = quat_log(quat_mul(wq, mid * conj.astype(wq.dtype)))
+            w = mask[:, None].astype(wq.dtype) * weight.astype(wq.dtype)[None, :]
+            rot_r, rot_w, loss = r * w[..., None], w, jnp.einsum("brk,brk,br->b", r, r, w)
+        if prior is not None and problem.anchored:
+            r = quat_log(quat_mul(wq, prior * conj.astype(wq.dtype)))
+            w = jnp.broadcast_to(prior_w.astype(wq.dtype)[None, :], rot_w.shape)
+            rot_r, rot_w, loss = rot_r + r * w[..., None], rot_w + w, loss + jnp.einsum("brk,brk,br->b", r, r, w)
+        return rot_r / jnp.maximum(rot_w, 1e-30)[..., None], rot_w, loss
 
     smoothness.midpoints = midpoints
     return smoothness
@@ -268,13 +280,15 @@ def _make_lm(problem: Problem, iterations: int, linear: str = "tree"):
     evaluate = make_residuals(problem)
     apply = make_apply(problem)
     lm_step = make_lm_step(problem, linear)
-    smoothing = problem.smoothing and linear == "tree"
+    smoothing = (problem.smoothing or problem.anchored) and linear == "tree"
     smoothness = make_smoothness(problem) if smoothing else None
+    rot_j = jnp.asarray(problem.rot_joints)
 
     def solve(q, t, targets, w, floor, smooth_mask):
         world_q, world_p, r, loss, w_all = evaluate(q, t, targets, w, floor)
+        prior = world_q[:, rot_j] if problem.anchored else None
         if smoothing:
-            loss = loss + smoothness(world_q, smooth_mask)[2]
+            loss = loss + smoothness(world_q, smooth_mask, None, prior)[2]
         initial = loss
         lam = jnp.full(loss.shape, LM_LAMBDA0, loss.dtype)
         stall = jnp.zeros(loss.shape, jnp.int32)  # iterations in a row without real progress
@@ -288,14 +302,14 @@ def _make_lm(problem: Problem, iterations: int, linear: str = "tree"):
             i, q, t, world_q, world_p, r, loss, lam, stall, flat, w_all = carry
             if smoothing:  # neighbours held for this iteration (Jacobi over time)
                 mid = smoothness.midpoints(world_q)
-                rot_r, rot_w, s_loss = smoothness(world_q, smooth_mask, mid)
+                rot_r, rot_w, s_loss = smoothness(world_q, smooth_mask, mid, prior)
                 loss = evaluate_loss(r, w_all) + s_loss
                 q2, t2 = apply(q, t, world_q, lm_step(world_p, r, lam, w_all, rot_r, rot_w))
             else:
                 q2, t2 = apply(q, t, world_q, lm_step(world_p, r, lam, w_all))
             world_q2, world_p2, r2, loss2, w2 = evaluate(q2, t2, targets, w, floor)
             if smoothing:
-                loss2 = loss2 + smoothness(world_q2, smooth_mask, mid)[2]
+                loss2 = loss2 + smoothness(world_q2, smooth_mask, mid, prior)[2]
             ok = (loss2 < loss) & jnp.isfinite(loss2)
             gain = jnp.where(ok, (loss - loss2) / jnp.maximum(loss, 1e-30), 0.0)
             stall = jnp.where(gain > LM_RTOL, 0, stall + 1)
@@ -481,7 +495,7 @@ def solve(problem: Problem, q0: np.ndarray, t0: np.ndarray, targets: np.ndarray,
 
     if method not in ("lm", "adam"):
         raise ValueError(f"unknown method {method!r}")
-    extra = len(problem.contact_joints) or len(problem.floor_joints) or problem.smoothing
+    extra = len(problem.contact_joints) or len(problem.floor_joints) or problem.smoothing or problem.anchored
     if method == "adam" and extra:
         raise ValueError("the contact, floor and temporal terms need method 'lm'")
     n_near = len(problem.mapped) + len(problem.contact_joints)
