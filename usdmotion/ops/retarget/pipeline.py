@@ -596,11 +596,15 @@ def _compare(source: Motion, setup: Setup, motion: Motion, q0: np.ndarray, terms
     floor = terms.floor if terms is not None else None
     copy_q, copy_t = _unmapped_rules(setup, setup.inits["copy"], setup.translations.copy(), floor)
     rows = {"rotation_copy": _output_motion(source, setup, continuous_hemisphere(copy_q), copy_t)}
+    solved = {}
     if terms is not None:
         q, t, solution = _solve(setup, q0, None, rot_terms, "lm", iterations, None, floor)
         rows["plain"] = _output_motion(source, setup, q, t)
+        solved["plain"] = {"frames_per_second_solve": source.n_frames / solution.run_s if solution.run_s else None,
+                           "iterations_run": solution.iterations}
     rows["result"] = motion
-    return {name: retarget_quality.quality(source, setup, m, terms) for name, m in rows.items()}
+    return {name: {**retarget_quality.quality(source, setup, m, terms), **solved.get(name, {})}
+            for name, m in rows.items()}
 
 
 def _output_motion(source: Motion, setup: Setup, q: np.ndarray, t: np.ndarray) -> Motion:
