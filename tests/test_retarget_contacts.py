@@ -104,8 +104,10 @@ def test_tree_step_with_contact_and_floor_points_equals_the_dense_solve():
             q2, t2 = apply(q, t, world_q, step)
             _, wp2, _, _, _ = residuals(q2, t2, targets, weights, floor)
             near = wp2[:, np.r_[problem.mapped, problem.contact_joints]] - targets
-            lowest = jnp.zeros(wp2[:, problem.floor_joints].shape).at[..., 1].set(wp2[:, problem.floor_joints, 1]
-                                                                                   - floor[:, None])
+            # the floor term's Gauss–Newton model: the joint's projection onto the floor at this
+            # iterate is held (so the step also prefers not to slide a joint that is below it)
+            held = world_p[:, problem.floor_joints].at[..., 1].set(jnp.broadcast_to(floor[:, None], (2, 4)))
+            lowest = wp2[:, problem.floor_joints] - held
             res = jnp.concatenate([near, lowest], axis=1)
             return (res * jnp.sqrt(jnp.where(below, w, 0.0))[..., None]).reshape(2, -1)
 
@@ -218,7 +220,7 @@ def test_flip_rule_flags_a_half_turn_and_hemisphere_is_continuous():
     from usdmotion.ops.retarget.unmapped import continuous_hemisphere
 
     angles = np.radians(np.r_[np.linspace(0, 20, 10), np.linspace(200, 210, 5)])  # a 180° jump at frame 10
-    q = axis_angle_quat("x", angles)[:, None]
+    q = axis_angle_quat("X", angles)[:, None]
     q[::3] *= -1  # sign noise: the same rotations
     steps = rotation_steps(q)
     assert steps[0] == pytest.approx(180.0, abs=1e-6)  # from 20° to 200° in one frame
@@ -238,10 +240,10 @@ def test_twist_bones_take_their_share_of_the_driver_twist():
     assert [(r[0], r[1]) for r in rows] == [(1, 3), (2, 3)]
     assert [r[2] for r in rows] == pytest.approx([1 / 3, 2 / 3])
     twist = np.radians(np.linspace(-120, 120, 9))
-    swing = axis_angle_quat("z", np.radians(30.0))
+    swing = axis_angle_quat("Z", np.radians(30.0))
     q = np.zeros((9, 4, 4))
     q[..., 0] = 1
-    q[:, 3] = quat_mul(np.broadcast_to(swing, (9, 4)), axis_angle_quat("x", twist))  # hand: swing · twist
+    q[:, 3] = quat_mul(np.broadcast_to(swing, (9, 4)), axis_angle_quat("X", twist))  # hand: swing · twist
     out = distribute_twist(q, rows)
     for j, share in ((1, 1 / 3), (2, 2 / 3)):
         np.testing.assert_allclose(twist_about(out[:, j], np.array([1.0, 0, 0])),
@@ -259,8 +261,8 @@ def test_floor_root_follows_the_hips_ground_projection_and_heading():
     q = np.zeros((n, 4, 4))
     q[..., 0] = 1
     yaw = np.radians(np.linspace(0, 150, n))
-    tilt = axis_angle_quat("x", np.radians(rng.uniform(-10, 10, n)))
-    q[:, 1] = quat_mul(axis_angle_quat("y", yaw), tilt)  # hips: heading · tilt
+    tilt = axis_angle_quat("X", np.radians(rng.uniform(-10, 10, n)))
+    q[:, 1] = quat_mul(axis_angle_quat("Y", yaw), tilt)  # hips: heading · tilt
     q[:, 2] = euler_to_quat(rng.uniform(-0.5, 0.5, (n, 3)), "ZXY")
     t = np.zeros((n, 4, 3))
     t[:, 0] = 0.0  # the root bone stays at the origin (as solved)

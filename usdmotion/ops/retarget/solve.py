@@ -133,7 +133,10 @@ def make_residuals(problem: Problem):
     mapped and contact joints, and for the floor joints ``(p_up − floor)`` on the vertical
     axis where a joint is below the floor (0 elsewhere; weight ``floor_weight`` there, 0
     elsewhere — a one-sided term). ``loss = Σ w ‖r‖²`` per frame. ``w`` defaults to the
-    problem's static weights (contact terms off)."""
+    problem's static weights (contact terms off). The LM step treats a floor residual like
+    the others, i.e. as the distance to the joint's projection onto the floor held at the
+    current iterate: the same gradient, and a Gauss–Newton model that also resists sliding
+    a joint that is below the floor."""
     import jax.numpy as jnp
 
     parents = problem.parents
