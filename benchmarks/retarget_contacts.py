@@ -42,7 +42,7 @@ JUMP = ("cmu/cgspeed_01_01_playground_jumps.bvh", {"units": "asf"}, 1, 1201)
 TAKE86 = ("cmu86/86_01_from_amc_cgspeed_layout.bvh", {"units": "asf"}, 0, 1200)
 PAIRS = [
     ("walk -> Bandai", WALK, "bandai1/dataset-1_walk_normal_001.bvh", {}),
-    ("walk -> DAZ", WALK, "cmu/daz_10_01_soccer_kick.bvh", {"units": "asf"}),
+    ("walk -> DAZ", WALK, "cmu/daz_10_01_soccer_kick.bvh", {}),
     ("jumps -> Mixamo", JUMP, "other_rigs/20tab_test_freebvh_mixamorig.bvh", {}),
     ("86_01 -> Rokoko", TAKE86, "other_rigs/ad_rokoko_jesse_dance.bvh", {}),
     ("walk -> legs 0.8x", WALK, 0.8, {}),

@@ -47,7 +47,8 @@ def test_new_terms_gradient_matches_finite_differences(prior):
     import jax.numpy as jnp
 
     from usdmotion.ops.retarget.hierarchy import ancestor_matrix
-    from usdmotion.ops.retarget.solve import make_apply, make_jacobian, make_residuals, make_smoothness
+    from usdmotion.ops.retarget.rotation_terms import make_rotation_terms as make_smoothness
+    from usdmotion.ops.retarget.solve import make_apply, make_jacobian, make_residuals
 
     problem, q, t, targets, weights, floor = contact_problem(prior)
     with jax.enable_x64(True):

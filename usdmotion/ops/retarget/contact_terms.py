@@ -32,6 +32,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from usdmotion.ops.contacts.detect import UP_INDEX, FootContacts
+from usdmotion.ops.retarget.hierarchy import ancestor_matrix
 
 #: Weight of a planted contact joint's distance to its fixed point (mapped joints: 1).
 CONTACT_WEIGHT = 100.0
@@ -183,3 +184,9 @@ def _source_positions(setup, source, indices: np.ndarray) -> np.ndarray:
         out[:, c] = setup.targets[:, j]
     return out
 
+
+def moved_joints(setup) -> np.ndarray:
+    """Joints that some optimised rotation or translation moves (the floor term's points)."""
+    sub = ancestor_matrix(setup.rig.parents) | np.eye(setup.rig.n_joints, dtype=bool)
+    moved = sub[setup.rot_joints].any(axis=0) | sub[setup.trans_joints].any(axis=0)
+    return np.flatnonzero(moved)

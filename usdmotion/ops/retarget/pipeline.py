@@ -36,14 +36,16 @@ from usdmotion.ops.retarget.hierarchy import (Rig, RetargetError, UnitsMismatchE
                                      derive_rig, mapped_chains, rig_from_motion, source_bone_lengths)
 from usdmotion.ops.retarget import quality as retarget_quality
 from usdmotion.ops.retarget import report as retarget_report
-from usdmotion.ops.retarget.contact_terms import FLOOR_WEIGHT, ROOT_SCALES, contact_terms
+from usdmotion.ops.retarget.contact_terms import FLOOR_WEIGHT, ROOT_SCALES, contact_terms, moved_joints
 from usdmotion.ops.retarget.jointmap import JointMap, resolve_map
 from usdmotion.ops.retarget.losses import frame_losses
 from usdmotion.ops.retarget.problem import Problem
+from usdmotion.ops.retarget.aim import aim_init, identity_quats as _identity
+from usdmotion.ops.retarget.rotation_terms import smooth_scale
 from usdmotion.ops.retarget.solve import solve
-from usdmotion.ops.retarget.unmapped import continuous_hemisphere, distribute_twist, floor_root, twist_bones
+from usdmotion.ops.retarget.unmapped import continuous_hemisphere, unmapped_rules
 from usdmotion.progress import Progress
-from usdmotion.rotations import matrix_to_quat, quat_between, quat_conjugate, quat_mul, quat_rotate
+from usdmotion.rotations import quat_conjugate, quat_mul, quat_rotate
 
 METHODS = ("lm", "adam")
 #: Default weight (rigs from files) of the pull of every optimised joint's world rotation
@@ -86,12 +88,6 @@ class Setup:
     @property
     def mapped(self) -> np.ndarray:
         return np.flatnonzero((self.source_of >= 0) & (self.weights > 0))
-
-
-def _identity(shape) -> np.ndarray:
-    q = np.zeros(tuple(shape) + (4,))
-    q[..., 0] = 1.0
-    return q
 
 
 def _up_rotation(source_up: str, target_up: str) -> np.ndarray | None:
@@ -305,104 +301,6 @@ def _initial_guesses(source: Motion, setup: Setup, up) -> dict:
     return inits
 
 
-def _rays(rig: Rig, offsets: np.ndarray, mapped_mask: np.ndarray) -> list[list[tuple[int, np.ndarray]]]:
-    """Per joint: ``(d, rest vector from the joint to d)`` for its nearest mapped descendants."""
-    children = [[] for _ in range(rig.n_joints)]
-    for j in range(1, rig.n_joints):
-        children[rig.parents[j]].append(j)
-    rays = []
-    for j in range(rig.n_joints):
-        found, stack = [], [(c, offsets[c]) for c in children[j]]
-        while stack:
-            c, v = stack.pop()
-            if mapped_mask[c]:
-                if np.linalg.norm(v) > 1e-9:
-                    found.append((c, v))
-            else:
-                stack.extend((g, v + offsets[g]) for g in children[c])
-        rays.append(found)
-    return rays
-
-
-def aim_init(setup: Setup, copied: np.ndarray | None = None) -> np.ndarray:
-    """Heuristic rotations ``(F, J, 4)``: every optimised joint aims its rest bone(s) at the
-    source direction(s) of its nearest mapped descendants (one: shortest swing; several:
-    least-squares rotation, Kabsch), joint by joint from the root, all frames at once.
-
-    One bone: the swing starts from the parent's frame (identity local rotation) or, with
-    ``copied`` (the source's local rotations), from the copied rotation, whichever stays
-    farther from a half turn over the whole take: a shortest swing near 180° picks its
-    twist at random, and a take-wide choice keeps the twist continuous (with the copied
-    start it is the source's own twist)."""
-    rig, offsets = setup.rig, setup.offsets
-    n_frames = setup.targets.shape[0]
-    mapped_mask = np.zeros(rig.n_joints, bool)
-    mapped_mask[setup.mapped] = True
-    rays = _rays(rig, offsets, mapped_mask)
-    optimised = np.zeros(rig.n_joints, bool)
-    optimised[setup.rot_joints] = True
-    local = _identity((n_frames, rig.n_joints))
-    world_q = _identity((n_frames, rig.n_joints))
-    world_p = np.zeros((n_frames, rig.n_joints, 3))
-    for j in range(rig.n_joints):
-        p = rig.parents[j]
-        parent_q = world_q[:, p] if p >= 0 else _identity((n_frames,))
-        parent_p = world_p[:, p] if p >= 0 else np.zeros((n_frames, 3))
-        world_p[:, j] = parent_p + quat_rotate(parent_q, setup.translations[:, j])
-        if optimised[j] and rays[j]:
-            bases = [parent_q] if copied is None else [parent_q, quat_mul(parent_q, copied[:, j])]
-            local[:, j] = quat_mul(quat_conjugate(parent_q), _aim(bases, world_p[:, j], rays[j], setup.targets))
-        world_q[:, j] = quat_mul(parent_q, local[:, j])
-    return local
-
-
-#: Several rays count as one direction (swing, not Kabsch) when the second singular value
-#: of their correlation is below this share of the first: a roll about nearly collinear
-#: rays is decided by noise and would flip between frames.
-COLLINEAR = 0.05
-
-
-def _swing(bases, u, v) -> np.ndarray:
-    """World rotations ``(F, 4)`` turning rest vector ``u (3,)`` carried by one of ``bases``
-    (``(F, 4)`` world rotations) onto ``v (F, 3)`` by the shortest arc; the base whose
-    largest swing over the take is smallest. A further base is always tried: the parent's
-    frame (``bases[0]``) turned once, for the whole take, so ``u`` points along the mean
-    direction of ``v`` in that frame — its swings stay far from a half turn unless the
-    bone sweeps more than a hemisphere around its parent."""
-    mean = np.sum(quat_rotate(quat_conjugate(bases[0]), v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True),
-                                                                        1e-300)), axis=0)
-    if np.linalg.norm(mean) > 1e-9 and np.linalg.norm(u) > 1e-12:
-        bases = [*bases, quat_mul(bases[0], quat_between(u, mean))]
-    best, best_angle = None, np.inf
-    for base in bases:
-        carried = quat_rotate(base, u)
-        cos = np.sum(carried * v, -1) / np.maximum(np.linalg.norm(carried, axis=-1) * np.linalg.norm(v, axis=-1),
-                                                   1e-300)
-        angle = float(np.arccos(np.clip(cos, -1.0, 1.0)).max())
-        if angle < best_angle - 1e-9:
-            best, best_angle = quat_mul(quat_between(carried, v), base), angle
-    return best
-
-
-def _aim(bases, origin, rays, targets) -> np.ndarray:
-    """World rotation ``(F, 4)`` aiming rest vectors (joint frame) at target directions;
-    ``bases[0]`` is the parent's world rotation."""
-    parent_q = bases[0]
-    u = np.stack([v for _, v in rays])  # (R, 3) joint frame
-    v = np.stack([targets[:, d] - origin for d, _ in rays], axis=1)  # (F, R, 3) world
-    swing = _swing(bases, u.sum(axis=0), v.sum(axis=1))
-    if len(rays) < 2:
-        return swing
-    h = np.einsum("frk,rl->fkl", v, u)  # Σ v uᵀ
-    w_, s, vt = np.linalg.svd(h)
-    d = np.sign(np.linalg.det(w_ @ vt))
-    fix = np.ones((len(d), 3))
-    fix[:, 2] = d
-    kabsch = matrix_to_quat(w_ @ (fix[:, :, None] * vt))
-    planar = s[:, 1] > COLLINEAR * np.maximum(s[:, 0], 1e-300)
-    return np.where(planar[:, None], kabsch, swing)
-
-
 # ------------------------------------------------------------------------ retarget
 
 
@@ -434,23 +332,6 @@ def _problem(setup: Setup, terms=None, smooth: float = 0.0, prior: float = 0.0):
                      floor_weight=FLOOR_WEIGHT)
     return Problem(setup.rig.parents, mapped, setup.weights[mapped], setup.rot_joints, setup.trans_joints, orders,
                    **extra)
-
-
-def moved_joints(setup: Setup) -> np.ndarray:
-    """Joints that some optimised rotation or translation moves (the floor term's points)."""
-    sub = ancestor_matrix(setup.rig.parents) | np.eye(setup.rig.n_joints, dtype=bool)
-    moved = sub[setup.rot_joints].any(axis=0) | sub[setup.trans_joints].any(axis=0)
-    return np.flatnonzero(moved)
-
-
-def smooth_scale(setup: Setup) -> np.ndarray:
-    """``(R,)`` per rotation joint ``Σ_m w_m ‖rest(m) − rest(j)‖²`` over its mapped descendants
-    (units²): a rotation error of ``θ`` moves them by about ``θ`` times their distance, so the
-    temporal term weighs a radian like the positions it moves."""
-    rest = fk_arrays(_identity((setup.rig.n_joints,)), setup.offsets, setup.rig.parents)[1]
-    anc = ancestor_matrix(setup.rig.parents)[setup.rot_joints][:, setup.mapped]  # (R, M)
-    d2 = np.sum((rest[setup.mapped][None] - rest[setup.rot_joints][:, None]) ** 2, axis=-1)
-    return np.sum(anc * d2 * setup.weights[setup.mapped][None], axis=1)
 
 
 def retarget(source: Motion, target: Motion | None = None, *, remove=(), add=(), joint_map: JointMap | None = None,
@@ -570,31 +451,14 @@ def _solve(setup: Setup, q0: np.ndarray, terms, rot_terms, method: str, iteratio
         args = (setup.rig.parents, setup.mapped, setup.targets, setup.weights)
         worse = frame_losses(t, q, *args) > frame_losses(setup.translations, q0, *args)
         q[worse], t[worse] = q0[worse], setup.translations[worse]
-    q, t = _unmapped_rules(setup, q, t, terms.floor if terms is not None else floor_height)
+    q, t = unmapped_rules(setup, q, t, terms.floor if terms is not None else floor_height)
     return continuous_hemisphere(q), t, solution
-
-
-def _unmapped_rules(setup: Setup, q: np.ndarray, t: np.ndarray, floor: float | None) -> tuple[np.ndarray, np.ndarray]:
-    """Twist bones share their driver's twist; a floor root bone follows the hips (module ``unmapped``)."""
-    rig = setup.rig
-    if setup.mode != "target":
-        return q, t
-    driven = np.zeros(rig.n_joints, bool)
-    driven[setup.mapped] = True
-    driven[setup.rot_joints] = True
-    q = distribute_twist(q, twist_bones(rig.joint_names, rig.parents, setup.offsets, driven, rig.end_sites))
-    if setup.top != 0 and setup.source_of[0] < 0 and 0 not in set(setup.rot_joints.tolist()):
-        up = 1 if rig.up_axis == "Y" else 2
-        if floor is None:  # the 2nd percentile of the lowest joint per frame
-            floor = float(np.percentile(fk_arrays(q, t, rig.parents)[1][..., up].min(axis=1), 2.0))
-        q, t = floor_root(q, t, rig.parents, setup.top, floor, up, setup.anchor == setup.top)
-    return q, t
 
 
 def _compare(source: Motion, setup: Setup, motion: Motion, q0: np.ndarray, terms, rot_terms, iterations) -> dict:
     """Quality of rotation copying, the plain solve and this result side by side."""
     floor = terms.floor if terms is not None else None
-    copy_q, copy_t = _unmapped_rules(setup, setup.inits["copy"], setup.translations.copy(), floor)
+    copy_q, copy_t = unmapped_rules(setup, setup.inits["copy"], setup.translations.copy(), floor)
     rows = {"rotation_copy": _output_motion(source, setup, continuous_hemisphere(copy_q), copy_t)}
     solved = {}
     if terms is not None:

@@ -43,9 +43,11 @@ from usdmotion.ops.retarget.hierarchy import ancestor_matrix
 from usdmotion.ops.retarget.problem import (ADAM_ITERATIONS, ADAM_LR, LM_ATOL, LM_DIAG_FLOOR, LM_DOWN, LM_ITERATIONS,
                                             LM_LAMBDA0, LM_LAMBDA_MAX, LM_LAMBDA_MIN, LM_NULL_DAMPING, LM_RTOL,
                                             LM_RTOL_TOTAL, LM_UP, Problem, masks)
+from usdmotion.ops.retarget.adam import make_adam
+from usdmotion.ops.retarget.rotation_terms import make_rotation_terms
 from usdmotion.ops.retarget.tree_step import make_tree_step
 from usdmotion.progress import Progress
-from usdmotion.rotations import (euler_to_quat, quat_exp, quat_log, quat_mul, quat_normalize, quat_rotate,
+from usdmotion.rotations import (quat_exp, quat_mul, quat_normalize, quat_rotate,
                                  quat_to_euler)
 
 # JAX (and optax) are imported inside the functions that use them: a deliberately deferred
@@ -160,50 +162,6 @@ def make_residuals(problem: Problem):
     return residuals
 
 
-def make_smoothness(problem: Problem):
-    """``(world_q (B,J,4), mask (B,)) -> (rot_r (B,R,3), rot_w (B,R), loss (B,))``: the
-    temporal term of the rotation joints. ``rot_r = log(W_j(f) · M_j(f)⁻¹)`` (world frame,
-    radians) with ``M_j(f)`` the normalised quaternion mean of ``W_j(f−1)`` and
-    ``W_j(f+1)`` (hemisphere-aligned): a second difference, so constant angular velocity
-    costs nothing and a flip costs a lot. ``mask`` is 1 on frames whose both neighbours are
-    real consecutive frames of the batch. Within one LM iteration the neighbours are held
-    (a Jacobi sweep over time; they move at the next iteration)."""
-    import jax.numpy as jnp
-
-    rot_j = jnp.asarray(problem.rot_joints)
-    weight = jnp.asarray(problem.smooth if problem.smoothing else np.zeros(len(problem.rot_joints)), jnp.float32)
-    prior_w = jnp.asarray(problem.prior if problem.anchored else np.zeros(len(problem.rot_joints)), jnp.float32)
-    conj = jnp.asarray([1.0, -1.0, -1.0, -1.0], jnp.float32)
-
-    def midpoints(world_q):
-        wq = world_q[:, rot_j]
-        prev = jnp.concatenate([wq[:1], wq[:-1]], axis=0)
-        nxt = jnp.concatenate([wq[1:], wq[-1:]], axis=0)
-        align = lambda a: a * jnp.where(jnp.sum(a * wq, -1, keepdims=True) < 0, -1.0, 1.0)  # noqa: E731
-        return quat_normalize(align(prev) + align(nxt))
-
-    def smoothness(world_q, mask, mid=None, prior=None):
-        """Both rotation terms folded into one residual per joint (the weighted mean of
-        the two residuals, the summed weight) and their loss."""
-        wq = world_q[:, rot_j]
-        rot_r = jnp.zeros(wq.shape[:-1] + (3,), wq.dtype)
-        rot_w = jnp.zeros(wq.shape[:-1], wq.dtype)
-        loss = jnp.zeros(wq.shape[:1], wq.dtype)
-        if problem.smoothing:
-            mid = midpoints(world_q) if mid is None else mid
-            r = quat_log(quat_mul(wq, mid * conj.astype(wq.dtype)))
-            w = mask[:, None].astype(wq.dtype) * weight.astype(wq.dtype)[None, :]
-            rot_r, rot_w, loss = r * w[..., None], w, jnp.einsum("brk,brk,br->b", r, r, w)
-        if prior is not None and problem.anchored:
-            r = quat_log(quat_mul(wq, prior * conj.astype(wq.dtype)))
-            w = jnp.broadcast_to(prior_w.astype(wq.dtype)[None, :], rot_w.shape)
-            rot_r, rot_w, loss = rot_r + r * w[..., None], rot_w + w, loss + jnp.einsum("brk,brk,br->b", r, r, w)
-        return rot_r / jnp.maximum(rot_w, 1e-30)[..., None], rot_w, loss
-
-    smoothness.midpoints = midpoints
-    return smoothness
-
-
 def single_point_joints(problem: Problem) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Rotation joints whose subtree holds exactly one mapped joint: ``(slot in
     rot_joints, joint, that mapped joint)``. Their twist about the line to it is a null
@@ -284,7 +242,7 @@ def _make_lm(problem: Problem, iterations: int, linear: str = "tree"):
     apply = make_apply(problem)
     lm_step = make_lm_step(problem, linear)
     smoothing = (problem.smoothing or problem.anchored) and linear == "tree"
-    smoothness = make_smoothness(problem) if smoothing else None
+    smoothness = make_rotation_terms(problem) if smoothing else None
     rot_j = jnp.asarray(problem.rot_joints)
 
     def solve(q, t, targets, w, floor, smooth_mask):
@@ -338,72 +296,6 @@ def evaluate_loss(r, w):
     return jnp.einsum("bmk,bmk,bm->b", r, r, w)
 
 
-def _euler_quats(theta, orders_groups, n_rot):
-    """Quaternions ``(B, R, 4)`` of Euler angles ``(B, R, 3)``, one conversion per order group."""
-    import jax.numpy as jnp
-
-    out = jnp.zeros(theta.shape[:-1] + (4,), theta.dtype)
-    for order, idx in orders_groups:
-        out = out.at[:, idx].set(euler_to_quat(theta[:, idx], order))
-    return out
-
-
-def _make_adam(problem: Problem, iterations: int, lr: float):
-    """A jitted ``(q, t, targets, theta0) -> (q, t, loss, initial loss)`` per-frame Adam."""
-    import jax
-    import jax.numpy as jnp
-    import optax
-
-    parents = problem.parents
-    mapped = jnp.asarray(problem.mapped)
-    w = jnp.asarray(problem.weights, jnp.float32)
-    rot_j = jnp.asarray(problem.rot_joints)
-    trans_j = jnp.asarray(problem.trans_joints)
-    groups = {}
-    for k, order in enumerate(problem.orders):
-        groups.setdefault(order, []).append(k)
-    groups = tuple((order, np.asarray(idx)) for order, idx in groups.items())
-    n_rot = len(problem.rot_joints)
-    optimiser = optax.adam(lr)
-
-    def frame_losses(params, q, t, targets):
-        theta, tt = params
-        q = q.at[:, rot_j].set(_euler_quats(theta, groups, n_rot)) if n_rot else q
-        t = t.at[:, trans_j].set(tt) if len(problem.trans_joints) else t
-        _, world_p = fk_arrays(q, t, parents)
-        d = world_p[:, mapped] - targets
-        per_frame = jnp.sum(w[None, :] * jnp.sum(d * d, axis=-1), axis=1)
-        return jnp.sum(per_frame), per_frame
-
-    grad = jax.value_and_grad(frame_losses, has_aux=True)
-
-    def solve(q, t, targets, theta0):
-        params = (theta0, t[:, trans_j])
-        state = optimiser.init(params)
-        (_, initial), _ = grad(params, q, t, targets)
-
-        def body(_, carry):
-            params, state, best, best_loss = carry
-            (_, loss), g = grad(params, q, t, targets)
-            better = loss < best_loss  # the loss of the current params, before the update
-            best = jax.tree.map(lambda b, p: jnp.where(better.reshape((-1,) + (1,) * (p.ndim - 1)), p, b), best, params)
-            best_loss = jnp.where(better, loss, best_loss)
-            updates, state = optimiser.update(g, state, params)
-            return optax.apply_updates(params, updates), state, best, best_loss
-
-        params, state, best, best_loss = jax.lax.fori_loop(0, iterations, body, (params, state, params, initial))
-        (_, last), _ = grad(params, q, t, targets)
-        better = last < best_loss
-        best = jax.tree.map(lambda b, p: jnp.where(better.reshape((-1,) + (1,) * (p.ndim - 1)), p, b), best, params)
-        best_loss = jnp.where(better, last, best_loss)
-        theta, tt = best
-        q = q.at[:, rot_j].set(_euler_quats(theta, groups, n_rot)) if n_rot else q
-        t = t.at[:, trans_j].set(tt) if len(problem.trans_joints) else t
-        return q, t, best_loss, initial, jnp.int32(iterations)
-
-    return jax.jit(solve)
-
-
 _EXECUTABLES: dict = {}
 
 
@@ -414,7 +306,7 @@ def _executable(problem: Problem, method: str, iterations: int, lr: float, args)
     if key in _EXECUTABLES:
         return _EXECUTABLES[key], 0.0
     start = time.perf_counter()
-    fn = _make_lm(problem, iterations) if method == "lm" else _make_adam(problem, iterations, lr)
+    fn = _make_lm(problem, iterations) if method == "lm" else make_adam(problem, iterations, lr)
     compiled = fn.lower(*args).compile()
     if len(_EXECUTABLES) >= 32:
         _EXECUTABLES.pop(next(iter(_EXECUTABLES)))

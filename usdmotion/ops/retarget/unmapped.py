@@ -119,3 +119,21 @@ def floor_root(q: np.ndarray, t: np.ndarray, parents: np.ndarray, top: int, floo
         offset = sum(t[:, j] for j in chain)  # root -> top, in the root's frame
         t[:, 0] = world_p[:, top] - quat_rotate(h, offset)
     return q, t
+
+
+def unmapped_rules(setup, q: np.ndarray, t: np.ndarray, floor: float | None) -> tuple[np.ndarray, np.ndarray]:
+    """The rules above on a solved target (``setup``: a pipeline ``Setup``; ``floor`` in target
+    units, default: the 2nd percentile of the lowest joint per frame)."""
+    rig = setup.rig
+    if setup.mode != "target":
+        return q, t
+    driven = np.zeros(rig.n_joints, bool)
+    driven[setup.mapped] = True
+    driven[setup.rot_joints] = True
+    q = distribute_twist(q, twist_bones(rig.joint_names, rig.parents, setup.offsets, driven, rig.end_sites))
+    if setup.top != 0 and setup.source_of[0] < 0 and 0 not in set(setup.rot_joints.tolist()):
+        up = 1 if rig.up_axis == "Y" else 2
+        if floor is None:  # the 2nd percentile of the lowest joint per frame
+            floor = float(np.percentile(fk_arrays(q, t, rig.parents)[1][..., up].min(axis=1), 2.0))
+        q, t = floor_root(q, t, rig.parents, setup.top, floor, up, setup.anchor == setup.top)
+    return q, t
