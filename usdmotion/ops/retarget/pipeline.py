@@ -24,6 +24,7 @@ The loss compares, per frame, the world positions of the mapped target joints wi
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
 
@@ -442,8 +443,17 @@ def _solve(setup: Setup, q0: np.ndarray, terms, rot_terms, method: str, iteratio
         weights = np.concatenate([np.broadcast_to(problem.weights, (len(q0), len(problem.weights))), terms.weights],
                                  axis=1)
         floor = terms.floor - centre[:, terms.up]
-    solution = solve(problem, q0, t0, targets, method=method, iterations=iterations, progress=progress,
-                     weights=weights, floor=floor)
+    if terms is not None:  # warm start: the plain solve first, then the contacts move what they must
+        plain = solve(_problem(setup, None, *rot_terms), q0, t0, targets[:, : len(setup.mapped)], method=method,
+                      iterations=iterations)
+        solution = solve(problem, plain.q, plain.t, targets, method=method, iterations=iterations,
+                         progress=progress, weights=weights, floor=floor)
+        solution = dataclasses.replace(solution, compile_s=solution.compile_s + plain.compile_s,
+                                       run_s=solution.run_s + plain.run_s,
+                                       iterations=solution.iterations + plain.iterations)
+    else:
+        solution = solve(problem, q0, t0, targets, method=method, iterations=iterations, progress=progress,
+                         weights=weights, floor=floor)
     q, t = solution.q, solution.t
     t[:, setup.anchor] += centre
     if terms is None and not problem.smoothing and not problem.anchored:

@@ -242,6 +242,9 @@ def _make_lm(problem: Problem, iterations: int, linear: str = "tree"):
     apply = make_apply(problem)
     lm_step = make_lm_step(problem, linear)
     smoothing = (problem.smoothing or problem.anchored) and linear == "tree"
+    # contact and floor terms weigh 100–1000× the positions: rejected steps are common while
+    # λ adapts, so they must not count as convergence
+    stiff = bool(len(problem.contact_joints) or len(problem.floor_joints))
     smoothness = make_rotation_terms(problem) if smoothing else None
     rot_j = jnp.asarray(problem.rot_joints)
 
@@ -273,7 +276,10 @@ def _make_lm(problem: Problem, iterations: int, linear: str = "tree"):
                 loss2 = loss2 + smoothness(world_q2, smooth_mask, mid, prior)[2]
             ok = (loss2 < loss) & jnp.isfinite(loss2)
             gain = jnp.where(ok, (loss - loss2) / jnp.maximum(loss, 1e-30), 0.0)
-            stall = jnp.where(gain > LM_RTOL, 0, stall + 1)
+            if stiff:  # a rejected step only raises λ: a frame has stalled when accepted steps gain nothing
+                stall = jnp.where(gain > LM_RTOL, 0, jnp.where(ok | (lam >= LM_LAMBDA_MAX), stall + 1, stall))
+            else:
+                stall = jnp.where(gain > LM_RTOL, 0, stall + 1)
             pick = lambda new, old: jnp.where(ok.reshape((-1,) + (1,) * (new.ndim - 1)), new, old)  # noqa: E731
             new_loss = pick(loss2, loss)
             total_gain = (jnp.sum(loss) - jnp.sum(new_loss)) / jnp.maximum(jnp.sum(loss), 1e-30)
