@@ -7,7 +7,9 @@ the CPU, or a GPU's driver; the table names it).
 
 Goal (issue 4): ≥ 25 frames/s end to end at 1280×720, skinned body, no shadows, 2 cores.
 Issue 20 adds, at 1280×720 in the same run: angles + plot panel + compare ghost ≥ 20 frames/s,
-a 2×2 layout ≥ 10 frames/s, and MSAA 4 on/off (ratios to the plain case, the peer).
+a 2×2 layout ≥ 10 frames/s, and anti-aliasing on/off (ratios to the plain case, the peer):
+the default FXAA pass ("plain"), none ("no AA", ``--no-fxaa``) and MSAA 4 (``--msaa 4``; Mesa's
+llvmpipe offers 4 samples only, so ``--msaa 2`` is the same).
 ``--long N`` also renders N frames at 320×240 to check that memory stays flat (RSS
 sampled every 500 frames). Prints a table; writes ``benchmarks/results/render.json``.
 """
@@ -49,7 +51,8 @@ def gl_renderer() -> str:
 
 #: Feedback-video cases at 1280x720 (issue 20): RenderOptions extras and whether to compare.
 FEATURES = {
-    "plain": ({}, False),
+    "plain": ({}, False),  # the default look: FXAA pass, anti-aliased grid texture
+    "no AA": ({"fxaa": False}, False),
     "msaa4": ({"msaa": 4}, False),
     "angles+panel+ghost": ({"angles": ("knee_left", "elbow_right"), "panel": "angle:knee_left,speed:RightHand"},
                            True),
@@ -112,6 +115,7 @@ def main() -> None:
                                                                                       0.0, 0.0]))
     features = [run_case(motion, 1280, 720, False, args.frames, tmp, name, extra, other if compare else None)
                 for name, (extra, compare) in FEATURES.items()]
+    by_case = {c["case"]: c["fps_end_to_end"] for c in features}
     on_cpu = any(word in renderer.lower() for word in ("llvmpipe", "softpipe", "swrast"))
     result = {
         "benchmark": "render", "input": WALK.name, "device": f"EGL {renderer} ({'CPU' if on_cpu else 'GPU'})",
@@ -120,8 +124,9 @@ def main() -> None:
         "goal": "≥ 25 frames/s end to end at 1280x720, skinned body, no shadows",
         "goal_met": bool(cases[0]["fps_end_to_end"] >= 25.0),
         "features_1280x720": features,
-        "feature_goals": {"angles+panel+ghost ≥ 20 fps": features[2]["fps_end_to_end"] >= 20.0,
-                          "2x2 ≥ 10 fps": features[3]["fps_end_to_end"] >= 10.0},
+        "feature_goals": {"plain (anti-aliased) ≥ 25 fps": features[0]["fps_end_to_end"] >= 25.0,
+                          "angles+panel+ghost ≥ 20 fps": by_case["angles+panel+ghost"] >= 20.0,
+                          "2x2 ≥ 10 fps": by_case["2x2"] >= 10.0},
         "load_average_at_end": os.getloadavg(),
     }
     if args.long:

@@ -3,8 +3,15 @@
     .venv/bin/python benchmarks/startup.py [--repeat 5]
 
 Each command runs as a new process (what a user waits for), ``--repeat`` times after one
-warm-up; the table shows medians and each command's time over the bare interpreter's, in
-the same run. Inputs: the bundled CMU walk tiled to 1,730 frames (1.3 MB, for ``info``)
+warm-up, the trees (``--tree``) taking turns; the table shows medians, each command's time
+over the bare interpreter's in the same run, and its CPU time (user + system, all threads:
+steadier than wall time on a loaded machine). Modules run from bytecode, as from an installed package (pip compiles it at
+install): the processes write and read it under a temporary ``PYTHONPYCACHEPREFIX``, so
+the warm-up compiles and ``PYTHONDONTWRITEBYTECODE`` in the caller's environment does not
+make every run recompile the package (about 0.02 s; ``--no-bytecode`` measures that way).
+A second table splits the ``convert`` → USDC process's import time (``-X importtime``,
+self times summed by top-level package, the least of three extra runs; its total exceeds
+the timed runs' because of the instrumentation). Inputs: the bundled CMU walk tiled to 1,730 frames (1.3 MB, for ``info``)
 and to 5,000 frames (31 joints, for ``convert`` to .usdc and .bvh). Goals (issue 11):
 ``info`` ≤ 0.30 s and ``convert`` to USDC ≤ 0.40 s whole process. The modules each command
 imported are listed too (``-X importtime`` would slow the run; ``sys.modules`` at exit).
@@ -15,6 +22,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -36,18 +44,35 @@ MODULES = ("import atexit, sys\n" + NO_EDITABLE + "\n"
            "from usdmotion.cli import main; sys.exit(main(sys.argv[1:]))")
 
 
-def whole_process(args: list[str], repeat: int, env: dict | None = None) -> dict:
-    """Median/min of ``repeat`` runs of ``args`` as a new process (after one warm-up)."""
-    times = []
+def run_once(args: list[str], env: dict | None) -> tuple[float, float] | None:
+    """``(wall s, CPU s of the process: user + system, all its threads)`` of one run, None if it failed."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    start = time.perf_counter()
+    done = subprocess.run(args, capture_output=True, text=True, env=env, cwd=tempfile.gettempdir())
+    elapsed = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if done.returncode != 0:
+        print(f"{' '.join(map(str, args))} failed: {done.stderr.strip()}", file=sys.stderr)
+        return None
+    return elapsed, after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime
+
+
+def whole_processes(runs: dict[str, tuple[list[str], dict]], repeat: int) -> dict[str, dict]:
+    """Median/min wall and median CPU time of each labelled ``(args, env)`` as a new process, ``repeat``
+    times after one warm-up, the labels taking turns (a load that drifts affects them alike)."""
+    samples: dict[str, list[tuple[float, float]]] = {label: [] for label in runs}
     for i in range(repeat + 1):
-        start = time.perf_counter()
-        done = subprocess.run(args, capture_output=True, text=True, env=env, cwd=tempfile.gettempdir())
-        elapsed = time.perf_counter() - start
-        if done.returncode != 0:
-            raise SystemExit(f"{' '.join(map(str, args))} failed: {done.stderr.strip()}")
-        if i:
-            times.append(elapsed)
-    return {"median_s": statistics.median(times), "min_s": min(times), "runs": repeat}
+        for label, (args, env) in runs.items():
+            if samples[label] is None:
+                continue
+            sample = run_once(args, env)
+            if sample is None:  # e.g. --version, which an older checkout lacks
+                samples[label] = None
+            elif i:
+                samples[label].append(sample)
+    return {label: {"median_s": statistics.median(w for w, _ in s), "min_s": min(w for w, _ in s),
+                    "cpu_median_s": statistics.median(c for _, c in s), "runs": repeat}
+            for label, s in samples.items() if s is not None}
 
 
 def imported(cli_args: list[str], env: dict | None = None) -> list[str]:
@@ -57,18 +82,41 @@ def imported(cli_args: list[str], env: dict | None = None) -> list[str]:
     return json.loads(line.split(" ", 1)[1].replace("'", '"'))
 
 
+def import_breakdown(cli_args: list[str], env: dict, runs: int = 3) -> dict[str, float]:
+    """Seconds of import (self times) by top-level package, the least of ``runs`` ``-X importtime`` runs."""
+    least: dict[str, float] = {}
+    for _ in range(runs):
+        done = subprocess.run([PYTHON, "-X", "importtime", "-c", CLI, *cli_args], capture_output=True, text=True,
+                              env=env, cwd=tempfile.gettempdir())
+        totals: dict[str, float] = {}
+        for line in done.stderr.splitlines():
+            if line.startswith("import time:") and "|" in line and not line.rstrip().endswith("package"):
+                self_us, _, name = (part.strip() for part in line.removeprefix("import time:").split("|"))
+                top = name.split(".")[0]
+                totals[top] = totals.get(top, 0.0) + int(self_us) / 1e6
+        least = {k: min(v, least.get(k, v)) for k, v in totals.items()} | {k: v for k, v in least.items()
+                                                                           if k not in totals}
+    return least
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=5)
     parser.add_argument("--tree", action="append", default=[], metavar="LABEL=PATH",
                         help="also run the commands with PYTHONPATH=PATH (another checkout), labelled LABEL")
+    parser.add_argument("--no-bytecode", action="store_true",
+                        help="keep the caller's PYTHONDONTWRITEBYTECODE (every run compiles the package)")
     args = parser.parse_args()
-    trees = {"": {**os.environ, "PYTHONPATH": str(REPO)}}
-    for tree in args.tree:
-        label, path = tree.split("=", 1)
-        trees[f"{label}: "] = {**os.environ, "PYTHONPATH": path}
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
+        base_env = dict(os.environ)
+        if not args.no_bytecode:
+            base_env.pop("PYTHONDONTWRITEBYTECODE", None)
+            base_env["PYTHONPYCACHEPREFIX"] = str(tmp / "pycache")
+        trees = {"": {**base_env, "PYTHONPATH": str(REPO)}}
+        for tree in args.tree:
+            label, path = tree.split("=", 1)
+            trees[f"{label}: "] = {**base_env, "PYTHONPATH": path}
         info_file = tiled_bvh(WALK, 1730, tmp / "walk_1730.bvh")
         convert_file = tiled_bvh(WALK, 5000, tmp / "walk_5000.bvh")
         cases = {
@@ -78,28 +126,33 @@ def main() -> None:
             "usdmotion convert 5000 frames -> .usdc": ["convert", str(convert_file), str(tmp / "out.usdc")],
             "usdmotion convert 5000 frames -> .bvh": ["convert", str(convert_file), str(tmp / "out.bvh")],
         }
-        results = {}
+        results = whole_processes({"python -c pass": (cases.pop("python -c pass"), base_env)}, args.repeat)
         for name, cli_args in cases.items():
+            measured = whole_processes({label + name: ([PYTHON, "-c", CLI, *cli_args], env)
+                                        for label, env in trees.items()}, args.repeat)
+            if name not in measured:
+                raise SystemExit(f"{name} failed in this tree")
             for label, env in trees.items():
-                if name.startswith("python"):
-                    if not label:
-                        results[name] = whole_process(cli_args, args.repeat)
-                    continue
-                try:
-                    results[label + name] = whole_process([PYTHON, "-c", CLI, *cli_args], args.repeat, env)
-                except SystemExit as failed:  # e.g. --version, which an older checkout lacks
-                    if not label:
-                        raise
-                    print(f"{label}{name}: {failed}", file=sys.stderr)
-                    continue
-                results[label + name]["imports"] = imported(cli_args, env)
+                if label + name in measured:
+                    results[label + name] = {**measured[label + name], "imports": imported(cli_args, env)}
+        breakdown = {label: import_breakdown(cases["usdmotion convert 5000 frames -> .usdc"], env)
+                     for label, env in trees.items()}
     base = results["python -c pass"]["median_s"]
-    rows = [[name, f"{r['median_s']:.3f}", f"{r['min_s']:.3f}", f"{r['median_s'] / base:.1f}x",
+    rows = [[name, f"{r['median_s']:.3f}", f"{r['min_s']:.3f}", f"{r['median_s'] / base:.1f}x", f"{r['cpu_median_s']:.3f}",
              " ".join(r.get("imports", []))] for name, r in results.items()]
-    print_table(f"whole-process time, median of {args.repeat} (interpreter: {PYTHON})",
-                ["command", "median s", "min s", "over python", "heavy modules imported"], rows)
-    path = write_results("startup", {"repeat": args.repeat, "trees": args.tree, "goals_s": {"info": 0.30, "convert_usdc": 0.40},
-                                     "results": results})
+    print_table(f"whole-process time, median of {args.repeat}, {'from source' if args.no_bytecode else 'from bytecode'}, "
+                f"1-min load average {os.getloadavg()[0]:.1f} (interpreter: {PYTHON})",
+                ["command", "median s", "min s", "over python", "CPU s", "heavy modules imported"], rows)
+    groups = sorted({g for b in breakdown.values() for g in b}, key=lambda g: -max(b.get(g, 0) for b in breakdown.values()))
+    print()
+    print_table("import time of convert -> .usdc by top-level package, s (self times, -X importtime)",
+                ["package"] + [label.rstrip(": ") or "this tree" for label in breakdown],
+                [[g] + [f"{b.get(g, 0.0):.3f}" for b in breakdown.values()] for g in groups[:12]]
+                + [["all imports"] + [f"{sum(b.values()):.3f}" for b in breakdown.values()]])
+    path = write_results("startup", {"repeat": args.repeat, "trees": args.tree, "bytecode": not args.no_bytecode,
+                                     "load_average_1min": os.getloadavg()[0],
+                                     "goals_s": {"info": 0.30, "convert_usdc": 0.40},
+                                     "results": results, "convert_usdc_import_s": breakdown})
     print(f"wrote {path}")
 
 

@@ -75,10 +75,11 @@ AREAS = [
 ]
 
 FIXED = """\
-| `interrupted; no partial output was kept` (exit 130) | Ctrl-C: nothing was written; rerun. |
+| `interrupted; no partial output was kept` (exit 130) | Ctrl-C (at any moment, start-up and `batch` included): nothing was written; rerun. |
 | `terminated by SIGTERM; no partial output was kept` (exit 143) | The process was stopped: nothing was written; rerun. |
 | `internal error (…); rerun with USDMOTION_DEBUG=1 for a traceback` (exit 1) | A bug, not your input: report it with the traceback. |
 | `… (see --help)` (exit 2) | A usage error (unknown option, missing argument): see `usdmotion COMMAND --help`. |
+| (the help, no error line; exit 0) | `usdmotion` or `usdmotion batch` without a command shows what there is to run. |
 """
 
 

@@ -33,6 +33,8 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 #: The rig profiles the record was made with (later profiles are checked elsewhere).
 PROFILES = ("bandai", "cmu_cgspeed", "cmu_max", "daz", "mixamo", "rokoko")
+#: The role presets the record was made with (later presets are checked in tests/test_rigs.py).
+PRESETS = ("cgspeed-mb", "cgspeed-max", "daz", "bandai", "mixamo", "asf")
 #: Source → target rigs whose automatic maps are kept in full (the rest as digests).
 FULL_MAPS = (
     ("cmu/cgspeed_12_01_walk.bvh", "cmu/daz_10_01_soccer_kick.bvh"),
@@ -122,7 +124,7 @@ def record_skeleton(motion) -> dict:
         "roles": _attempt(lambda: _names(motion, R.find_roles(motion, source="rig.bvh"))),
         "roles_preset": R.match_preset(motion),
         "roles_forced": {p: _attempt(lambda p=p: _names(motion, R.find_roles(motion, preset=p, source="rig.bvh")))
-                         for p in R.PRESET_NAMES},
+                         for p in PRESETS},
         "roles_guessed": _attempt(guessed_roles),
         "landmarks": _attempt(landmarks),
         "landmarks_guessed": _attempt(lambda: _names(motion, A._guess(motion))),

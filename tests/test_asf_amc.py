@@ -62,8 +62,17 @@ def test_86_01_equals_the_derived_cgspeed_bvh(take_86_01):
     # World positions at every frame agree to the file's own precision: its 4-decimal root
     # position alone is off by up to √3·0.5e-4 = 8.7e-5 units = 3.3e-6 × height.
     height = skeleton_height(theirs)
-    error = np.linalg.norm(joint_positions(ours) - joint_positions(theirs), axis=-1)
+    mine_xyz, theirs_xyz = joint_positions(ours), joint_positions(theirs)
+    error = np.linalg.norm(mine_xyz - theirs_xyz, axis=-1)
     assert error.max() <= 4e-6 * height
+    # Where that error comes from (issue 18 asks for 1e-6 × height, which this reference cannot
+    # express): the root alone is within the rounding bound of its 4-decimal position, and
+    # every joint relative to the root within 2e-6 × height (4-decimal angles, 0.5e-4° each,
+    # summed along chains of up to 8 bones); measured 2.7e-6 and 1.7e-6 × height.
+    root_error = np.linalg.norm(mine_xyz[:, 0] - theirs_xyz[:, 0], axis=-1)
+    assert root_error.max() <= np.sqrt(3) * 0.5e-4 + 1e-9
+    relative = (mine_xyz - mine_xyz[:, :1]) - (theirs_xyz - theirs_xyz[:, :1])
+    assert np.linalg.norm(relative, axis=-1).max() <= 2e-6 * height
     assert ours.fps == pytest.approx(120.0) and ours.meters_per_unit == pytest.approx(0.0254 / 0.45)
 
 

@@ -134,8 +134,14 @@ def test_local_cluster_analyze_frames_dataset(library, tmp_path):
 
     out = tmp_path / "out"
     include = ("session1/**/*.bvh",)
-    result = run_batch("analyze", library, out, workers=2, include=include)
+    reports = []
+    result = run_batch("analyze", library, out, workers=2, include=include,
+                       progress=lambda done, total, message: reports.append((done, total, message)))
     assert not result.failed and len(result.rows) == len(SHARED_TAKES)
+    n = len(SHARED_TAKES)  # usdmotion.progress.Progress: (takes done, takes to run, what finished last)
+    assert reports[0] == (0, n, "batch analyze")
+    assert [r[:2] for r in reports[1:]] == [(k, n) for k in range(1, n + 1)]
+    assert sorted(r[2] for r in reports[1:]) == sorted(f"batch analyze: {row['relpath']}" for row in result.rows)
     cat = _catalogue(out).set_index("take")
     frames = pd.read_parquet(out / "frames")  # hive-partitioned by take, read directly
     assert set(frames["take"].unique()) == set(cat.index)
@@ -271,13 +277,16 @@ def test_ctrl_c_leaves_complete_outputs_and_a_consistent_catalogue(library, tmp_
 
     out = tmp_path / "out"
     cmd = [str(Path(sys.executable).parent / "usdmotion"), "batch", "convert", str(library), str(out), "--workers", "1"]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # its own process group, signalled as a whole: what a terminal's Ctrl-C does (the Dask
+    # workers get it too, and must neither print a traceback nor leave partial files)
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
     deadline = time.time() + 120
     while not list(out.rglob("*.usdc")) and time.time() < deadline and proc.poll() is None:
         time.sleep(0.05)
-    proc.send_signal(signal.SIGINT)
+    os.killpg(proc.pid, signal.SIGINT)
     _, err = proc.communicate(timeout=120)
-    assert proc.returncode == 130 and "Traceback" not in err  # typer turns Ctrl-C into Exit(130)
+    assert proc.returncode == 130 and "Traceback" not in err and "KeyboardInterrupt" not in err, err
+    assert err.strip().splitlines()[-1] == "usdmotion: error: interrupted; no partial output was kept", err
     _no_temporaries(out)
     cat = _catalogue(out)
     done = cat[cat.status == "ok"]

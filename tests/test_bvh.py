@@ -270,3 +270,45 @@ def test_world_like_joint_position_channels_are_flagged_and_can_be_ignored(share
         with warnings.catch_warnings():
             warnings.simplefilter("error")
             read_bvh(shared_file(name))
+
+
+def _motion_rows(data: bytes) -> bytes:
+    """The bytes after the ``Frame Time`` line."""
+    at = data.lower().index(b"frame time")
+    return data[data.index(b"\n", at) + 1:]
+
+
+@pytest.mark.parametrize("name", [c[0] for c in CORPUS], ids=[c[0].split("/")[-1] for c in CORPUS])
+def test_fast_row_reader_equals_the_line_scan_on_the_corpus(shared_file, name):
+    # the fast path (np.loadtxt) and the exact per-line float() scan read the same bits
+    from usdmotion.io.bvh_rows import _fast_parse, _line_scan
+
+    path = shared_file(name)
+    channels = parse_bvh(path.read_bytes(), path).values.shape[1]
+    rows = _motion_rows(path.read_bytes())
+    fast = _fast_parse(rows, channels)
+    assert fast is not None  # every corpus file takes the fast path
+    assert np.array_equal(fast, _line_scan(rows, channels, 1, str(path), False).values)
+
+
+@pytest.mark.parametrize("rows", [
+    b"0.1 1e-7 -2.5E+3\n+.5 5. 1234567890.123456789\n",
+    b"\t0.30000000000000004  -0\t 2.2250738585072014e-308 \r\n\r\n1e308 -1e-320 0.1\r\n",
+    b"1 2 3\x0c\n4\x0b5 6\n",
+    b"nan inf -Infinity\n1 -inf NaN\n",
+])
+def test_fast_row_reader_equals_the_line_scan_on_awkward_numbers(rows):
+    from usdmotion.io.bvh_rows import _fast_parse, _line_scan
+
+    fast = _fast_parse(rows, 3)
+    assert fast is not None
+    scan = _line_scan(rows, 3, 1, "x.bvh", False).values
+    assert np.array_equal(fast, scan, equal_nan=True) and np.array_equal(np.signbit(fast), np.signbit(scan))
+
+
+@pytest.mark.parametrize("rows", [b"1 2 3\n4 5\n", b"1 2 x\n", b"1_0 2 3\n", b"1 2 \xff\n", b"1 2 3\r4 5 6\n",
+                                  b"1 2 3 4\n", "\u2028\n".encode()])
+def test_fast_row_reader_leaves_broken_rows_to_the_line_scan(rows):
+    from usdmotion.io.bvh_rows import _fast_parse
+
+    assert _fast_parse(rows, 3) is None

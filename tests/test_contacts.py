@@ -172,6 +172,8 @@ def test_json_round_trip_validates_against_the_schema(tmp_path):
     (lambda d: d["joints"][0].update(name="Nope"), r"/joints: the motion has no joint named 'Nope'"),
     (lambda d: d.update(frames=7), r"/frames: the contacts are for 7 frames, the motion has 480"),
     (lambda d: d.update(up_axis="X"), r"/up_axis: 'X' is not one of"),
+    (lambda d: d.update(frames=480.0, joints=[dict(d["joints"][0], intervals=[[3.0, 1.0]])]), r"\[3, 1\] is not"),
+    (lambda d: d.update(thresholds=dict(d["thresholds"], speed_exit=0.01)), r"/thresholds: the exit thresholds"),
 ])
 def test_bad_contacts_files_are_refused_with_the_path(tmp_path, change, message):
     motion, _ = synthetic_walk(120.0)
@@ -191,7 +193,9 @@ def test_cli_table_json_and_plot(tmp_path, capsys):
     out, plot = tmp_path / "c.json", tmp_path / "c.png"
     assert main(["contacts", str(source), "--units", "m", "--json", str(out), "--plot", str(plot)]) == 0
     table = capsys.readouterr().out.splitlines()
-    rows = {line.split()[0]: line.split() for line in table[2:]}
+    assert table[-1].startswith("foot skate 0.00 cm/s mean (max 0.0; 0 % of planted steps > 2 cm/s), "
+                                "penetration 0.00 cm max (0 frames), floating 0 %")  # the walk is clean
+    rows = {line.split()[0]: line.split() for line in table[2:-1]}
     assert set(rows) == {"LeftFoot", "LeftToeBase", "RightFoot", "RightToeBase"}
     for joint, row in rows.items():
         true_spans = runs(truth[joint])
@@ -209,13 +213,15 @@ def test_cli_table_json_and_plot(tmp_path, capsys):
     (["{walk}", "--height-enter", "0.2"], r"the exit thresholds must be at least the enter thresholds"),
     (["{walk}", "--plot", "{tmp}/c.gif"], r"unknown image format '\.gif'"),
     (["{walk}", "--floor", "nan"], r"floor height must be a finite number"),
+    (["{walk}", "--plot", "{tmp}/walk.bvh.png", "--json", "{walk}"], r"walk\.bvh: output would overwrite the input"),
 ])
 def test_cli_bad_input_one_line_exit_2_nothing_written(tmp_path, capsys, args, message):
     motion, _ = synthetic_walk(120.0)
     write_motion(motion, tmp_path / "walk.bvh")
     args = [a.format(walk=tmp_path / "walk.bvh", tmp=tmp_path) for a in args]
     before = set(tmp_path.iterdir())
-    assert main(["contacts", *args, "--units", "m", "--json", str(tmp_path / "c.json")]) == 2
+    json_out = [] if "--json" in args else ["--json", str(tmp_path / "c.json")]
+    assert main(["contacts", *args, "--units", "m", *json_out]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("usdmotion: error: ")
     assert __import__("re").search(message, err[0]), err[0]
@@ -233,3 +239,134 @@ def test_cmu_walk_contacts_alternate(shared_file):
     assert np.all(found.contact.any(axis=1)[30:-30])  # walking: never both feet in the air
     heights = joint_positions(walk)[:, found.indices, 1] * walk.meters_per_unit
     assert np.all(heights[found.contact] - found.floor - found.clearance[np.nonzero(found.contact)[1]] < 0.05)
+
+
+def test_contacts_move_to_another_rig_by_part():
+    from conftest import TEST_DATA
+
+    from usdmotion.io import read_motion
+    from usdmotion.ops.contacts import contacts_on_rig
+
+    motion, _ = synthetic_walk(120.0)
+    found = detect_contacts(motion)
+    rig = read_motion(TEST_DATA / "rigs" / "unreal.bvh")  # ankle 9 cm, ball 2 cm above the floor at rest
+    moved = contacts_on_rig(found, rig, floor=0.0)
+    assert moved.joints == ("foot_l", "ball_l", "foot_r", "ball_r") and moved.parts == found.parts
+    assert moved.clearance == pytest.approx([0.07, 0.0, 0.07, 0.0], abs=1e-9)
+    assert np.array_equal(moved.contact, found.contact) and moved.floor == 0.0
+    assert [rig.joint_names[i] for i in moved.indices] == list(moved.joints)
+    only_ankles = dataclasses.replace(found, joints=found.joints[::2], indices=found.indices[::2],
+                                      parts=found.parts[::2], contact=found.contact[:, ::2],
+                                      clearance=found.clearance[::2])
+    assert contacts_on_rig(only_ankles, rig).joints == ("foot_l", "foot_r")
+    with pytest.raises(InputError, match="2 contact joints in common but 3 clearances"):
+        contacts_on_rig(only_ankles, rig, clearance=np.zeros(3))
+
+
+def test_contacts_on_a_rig_with_clearances_from_its_motion():
+    from usdmotion.ops.contacts import contacts_on_rig
+
+    motion, _ = synthetic_walk(120.0, floor=0.5)
+    found = detect_contacts(motion, floor=0.5)
+    same = contacts_on_rig(found, motion, clearance="motion")
+    assert same.clearance == pytest.approx(found.clearance, abs=1e-12)
+    assert same.clearance == pytest.approx([ANKLE_HEIGHT, TOE_HEIGHT] * 2, abs=1e-6)
+    with pytest.raises(ValueError, match="clearance must be 'rest', 'motion' or an array"):
+        contacts_on_rig(found, motion, clearance="floor")
+
+
+def test_below_floor_of_any_joint():
+    from usdmotion.ops.contacts import below_floor
+
+    positions = np.zeros((5, 3, 3))
+    positions[..., 2] = 0.5  # Z up, everything 50 cm above a floor at 0.1 m
+    positions[1, 2, 2] = 0.08  # 2 cm under
+    positions[3, 0, 2] = 0.0995  # 0.05 cm under: within the 1 mm tolerance
+    depth, frames = below_floor(positions, 0.1, "Z")
+    assert depth == pytest.approx(2.0) and frames == 1
+    assert below_floor(positions, 0.1, "Y") == (pytest.approx(10.0), 5)  # Y holds 0: all 10 cm under
+
+
+def test_z_up_walk_gives_the_same_contacts():
+    motion, truth = synthetic_walk(120.0)
+    turn = np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0]], float)  # +90° about X: Y-up -> Z-up
+    zup = dataclasses.replace(motion, offsets=motion.offsets @ turn.T,
+                              root_translation=motion.root_translation @ turn.T,
+                              joint_translations=motion.joint_translations @ turn.T, up_axis="Z")
+    assert np.allclose(joint_positions(zup)[..., 2], joint_positions(motion)[..., 1])
+    a, b = detect_contacts(motion), detect_contacts(zup)
+    assert np.array_equal(a.contact, b.contact) and b.up == "Z" and b.floor == pytest.approx(a.floor)
+
+
+def test_contacts_files_never_crash_the_reader(tmp_path):
+    """Random edits of a valid contacts file: read back, or refused with one InputError."""
+    from hypothesis import HealthCheck, given, settings
+    from hypothesis import strategies as st
+
+    motion, _ = synthetic_walk(30.0, seconds=1.0)
+    path = tmp_path / "c.json"
+    write_contacts_json(detect_contacts(motion), path)
+    valid = json.loads(path.read_text())
+    values = st.one_of(st.none(), st.booleans(), st.integers(-10**6, 10**6), st.floats(allow_nan=False),
+                       st.text(max_size=5), st.lists(st.integers(-5, 40), max_size=3))
+    keys = st.sampled_from(["frames", "fps", "floor_m", "up_axis", "version", "thresholds", "joints", "junk"])
+    joint_keys = st.sampled_from(["name", "part", "clearance_m", "intervals", "contacts"])
+
+    @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+    @given(top=st.dictionaries(keys, values, max_size=2), joint=st.dictionaries(joint_keys, values, max_size=2),
+           speed=st.floats(allow_nan=False, allow_infinity=False))
+    def check(top, joint, speed):
+        doc = json.loads(json.dumps(valid))
+        doc.update(top)
+        if isinstance(doc.get("joints"), list) and doc["joints"] and isinstance(doc["joints"][0], dict):
+            doc["joints"][0].update(joint)
+        if isinstance(doc.get("thresholds"), dict):
+            doc["thresholds"]["speed_enter"] = speed
+        path.write_text(json.dumps(doc))
+        try:
+            read_contacts_json(path, motion)
+        except InputError as exc:
+            assert "\n" not in str(exc) and str(exc).startswith(str(path))
+
+    check()
+
+
+def test_feet_of_a_rig_no_profile_knows_come_from_the_roles():
+    from usdmotion.skeleton_names import detect_profile
+
+    motion, _ = synthetic_walk(120.0)
+    renamed = dataclasses.replace(motion, joint_names=tuple(
+        n[4:] + ".L" if n.startswith("Left") else n[5:] + ".R" if n.startswith("Right") else n
+        for n in motion.joint_names))
+    assert detect_profile(motion.joint_names) == "humanik" and detect_profile(renamed.joint_names) is None
+    a, b = detect_contacts(motion), detect_contacts(renamed)
+    assert b.joints == ("Foot.L", "ToeBase.L", "Foot.R", "ToeBase.R")
+    assert np.array_equal(a.indices, b.indices) and np.array_equal(a.contact, b.contact)
+    with pytest.raises(InputError, match="cannot find the feet for contacts: cannot find the joints for role"):
+        detect_contacts(dataclasses.replace(motion, joint_names=tuple(f"j{k}" for k in range(motion.n_joints))),
+                        source="x.bvh")
+
+
+def test_a_rig_with_heels_gets_heel_contacts(monkeypatch):
+    import copy
+
+    from usdmotion import skeleton_names
+    from usdmotion.motion import Motion
+
+    motion, truth = synthetic_walk(120.0)
+    n, j = motion.n_frames, motion.n_joints
+    feet = [motion.joint_index("LeftFoot"), motion.joint_index("RightFoot")]
+    heel = np.array([0.0, -0.06, -0.05])  # 6 cm below and 5 cm behind the ankle: on the floor with it
+    translations = np.concatenate([motion.joint_translations, np.broadcast_to(heel, (n, 2, 3))], axis=1)
+    rotations = np.concatenate([motion.rotations, motion.rotations[:, :2]], axis=1)
+    with_heels = Motion(motion.joint_names + ("LeftHeel", "RightHeel"), np.concatenate([motion.parents, feet]),
+                        np.concatenate([motion.offsets, [heel, heel]]), rotations, motion.root_translation, motion.fps,
+                        joint_translations=translations, meters_per_unit=1.0)
+    profiles = copy.deepcopy(skeleton_names.rig_profiles())
+    profiles["humanik"]["joints"].update(l_heel="LeftHeel", r_heel="RightHeel")
+    monkeypatch.setattr(skeleton_names, "rig_profiles", lambda: profiles)
+    found = detect_contacts(with_heels)
+    assert found.parts == ("left_heel", "left_ankle", "left_toe", "right_heel", "right_ankle", "right_toe")
+    assert found.joints[0] == "LeftHeel" and found.indices[0] == j
+    for heel_c, ankle in ((0, "LeftFoot"), (3, "RightFoot")):
+        assert np.abs(found.intervals(heel_c) - runs(truth[ankle])).max() <= 2

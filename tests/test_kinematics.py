@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -111,3 +112,29 @@ def test_sliced_keeps_the_euler_hint_of_the_kept_frames():
     assert np.array_equal(part.rotations, motion.rotations[1:3])
     assert np.array_equal(part.root_translation, motion.root_translation[1:3])
     assert np.array_equal(part.source_channels, motion.source_channels[1:3])  # 371°, 372° survive a write
+
+
+def test_position_bounds_are_exactly_the_bounds_of_joint_positions():
+    from usdmotion.io import read_motion
+    from usdmotion.kinematics import position_bounds
+
+    walk = read_motion(Path(__file__).resolve().parents[1] / "usdmotion" / "data" / "cmu_12_01_walk.bvh", units="asf")
+    positions = joint_positions(walk).reshape(-1, 3)
+    low, high = position_bounds(walk)
+    assert np.array_equal(low, positions.min(axis=0)) and np.array_equal(high, positions.max(axis=0))
+
+
+def test_a_motion_without_frames_writes_a_usd_stage_with_its_rest_pose_extent(tmp_path):
+    # main at 472b012 failed here with NumPy's "zero-size array to reduction operation minimum"
+    from pxr import Usd, UsdGeom, UsdSkel
+
+    from usdmotion.io import read_motion, write_motion
+
+    walk = read_motion(Path(__file__).resolve().parents[1] / "usdmotion" / "data" / "cmu_12_01_walk.bvh", units="asf")
+    empty = walk.with_frames(rotations=walk.rotations[:0], root_translation=walk.root_translation[:0])
+    stage = Usd.Stage.Open(str(write_motion(empty, tmp_path / "empty.usda")))
+    root = stage.GetDefaultPrim()
+    lo, hi = (np.array(v) for v in UsdGeom.Boundable(root).GetExtentAttr().Get())
+    query = UsdSkel.Cache().GetSkelQuery(UsdSkel.Skeleton(stage.GetPrimAtPath(root.GetPath().AppendChild("Skeleton"))))
+    world = np.array([np.array(m)[3, :3] for m in query.ComputeJointSkelTransforms(Usd.TimeCode.Default())])
+    assert np.allclose(lo, world.min(axis=0), atol=1e-5) and np.allclose(hi, world.max(axis=0), atol=1e-5)

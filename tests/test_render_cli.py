@@ -108,3 +108,24 @@ def test_convert_mesh_writes_a_valid_skinned_stage(shared_file, tmp_path, capsys
     np.testing.assert_allclose(weights.sum(axis=1), 1.0, atol=1e-6)
     assert main(["convert", str(shared_file(WALK)), str(tmp_path / "walk.bvh"), "--units", "asf", "--mesh"]) == 2
     assert "--mesh needs a USD or glTF output" in capsys.readouterr().err
+
+
+def test_more_msaa_samples_than_the_renderer_offers_is_one_line(shared_file, tmp_path, capsys):
+    """``--msaa`` above the driver's GL_MAX_SAMPLES (4 on llvmpipe) is refused in one line, not a GL error."""
+    from OpenGL import GL
+
+    from usdmotion.render import MSAA_SAMPLES
+    from usdmotion.render.gl import offscreen_renderer
+
+    probe = offscreen_renderer(16, 16)
+    probe._platform.make_current()
+    most = int(GL.glGetIntegerv(GL.GL_MAX_SAMPLES))
+    probe.delete()
+    above = [n for n in MSAA_SAMPLES if n > most]
+    if not above:
+        pytest.skip(f"this OpenGL offers {most} samples, as many as --msaa accepts")
+    code = main(["render", str(shared_file(WALK)), str(tmp_path / "walk.mp4"), *FAST, "--msaa", str(above[0])])
+    err = capsys.readouterr().err
+    assert code == 2 and err.startswith("usdmotion: error: ") and err.count("\n") == 1, err
+    assert f"at most {most} samples" in err
+    assert leftovers(tmp_path) == []

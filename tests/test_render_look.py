@@ -16,7 +16,8 @@ WALK = "cmu/cgspeed_12_01_walk.bvh"
 
 def test_contact_shadow_darkens_the_floor_under_the_body_only(shared_file, tmp_path):
     walk = read_motion(shared_file(WALK), units="asf")
-    options = RenderOptions(width=320, height=240, start=150, end=151, overlay=False, body_resolution=40, grid=False)
+    options = RenderOptions(width=320, height=240, start=150, end=151, overlay=False, body_resolution=40, grid=False,
+                            fxaa=False)  # the shadow alone (FXAA also re-blends the body's outline over it)
     images = {}
     for on in (True, False):
         render_motion(walk, tmp_path / f"{on}/####.png", dataclasses.replace(options, contact_shadow=on))
@@ -34,3 +35,78 @@ def test_contact_shadow_darkens_the_floor_under_the_body_only(shared_file, tmp_p
     x, y = project(floor(0.0, 0.8 * size), plan.camera.poses[0], plan.camera.yfov, 320, 240).astype(int)
     assert abs(darker[y, x]) <= 3  # far from the body: untouched
     assert (darker >= -3).all()  # the shadow only darkens
+
+
+def _grey(image: np.ndarray) -> np.ndarray:
+    return image.astype(float) @ [0.299, 0.587, 0.114]
+
+
+def _grid_line_columns(walk, options, grey):
+    """For each grid line parallel to the picture within the grid (from 1.9 m before to 1.9 m
+    behind the body), the pixel columns along it: ``[(line, [column greys around its projection])]``."""
+    plan = plan_render(walk, options)
+    pose, root = plan.camera.poses[0], joints_render_space(walk, plan.frames)[0][0]
+    view = -pose[:3, 2]  # the camera looks along -z of its pose
+    axis, along = (2, 0) if abs(view[2]) > abs(view[0]) else (0, 2)  # lines of constant z run across a side view
+    lines = []
+    for k in np.arange(np.ceil(root[axis] - 1.9), np.floor(root[axis] + 1.9) + 1):
+        points = np.zeros((400, 3))
+        points[:, axis], points[:, 1] = k, plan.ground
+        points[:, along] = root[along] + np.linspace(-1.9, 1.9, 400)
+        keep = np.abs(points[:, along] - root[along]) > 0.6  # not where the stick figure stands
+        pixels = np.rint(project(points[keep], pose, plan.camera.yfov, options.width, options.height)).astype(int)
+        inside = ((pixels >= 10) & (pixels < [options.width - 10, options.height - 10])).all(axis=1)
+        columns = {x: grey[y - 5:y + 6, x] for x, y in pixels[inside]}
+        if columns:  # (a line in front of the body may lie below the picture)
+            lines.append((k, list(columns.values())))
+    return lines
+
+
+def test_grid_lines_are_anti_aliased_and_unbroken_near_and_far(shared_file, tmp_path):
+    """Every pixel column along every grid line parallel to the picture, near the body and
+    behind it, shows the line (no gaps where a thin far line used to vanish); with the default
+    FXAA pass the stair steps of each tilted line are blended (greys between the floor's and a
+    fully covered line pixel's), and without it they are hard (those two greys only)."""
+    walk = read_motion(shared_file(WALK), units="asf")
+    options = RenderOptions(width=640, height=360, start=150, end=151, overlay=False, body_resolution=40,
+                            contact_shadow=False, style="stick")
+    blended = {}
+    for fxaa in (True, False):
+        render_motion(walk, tmp_path / f"{fxaa}/####.png", dataclasses.replace(options, fxaa=fxaa))
+        lines = _grid_line_columns(walk, options, _grey(read_image(tmp_path / f"{fxaa}/0000.png")))
+        assert len(lines) >= 2 and all(len(columns) > 50 for _, columns in lines), [len(c) for _, c in lines]
+        full = min(column.min() for _, columns in lines for column in columns)  # a wholly covered line pixel
+        blended[fxaa] = []
+        for k, columns in lines:
+            for column in columns:
+                assert column.max() - column.min() > 30, (fxaa, k, column.round())  # the line is there
+            between = [((column > full + 3) & (column < column.max() - 3)).any() for column in columns]
+            blended[fxaa].append(np.mean(between))
+    assert min(blended[True]) > 0.05 and max(blended[False]) < 0.01, blended  # (measured: 0.10-0.12 and 0)
+
+
+def test_fxaa_blends_edges_and_leaves_the_rest(shared_file, tmp_path):
+    """The FXAA pass changes pixels only on strong edges of the picture (the body's outline),
+    and it changes many of them, towards the colours on either side."""
+    walk = read_motion(shared_file(WALK), units="asf")
+    options = RenderOptions(width=320, height=240, start=150, end=151, overlay=False, body_resolution=40,
+                            grid=False, contact_shadow=False)
+    images = {}
+    for on in (True, False):
+        render_motion(walk, tmp_path / f"{on}/####.png", dataclasses.replace(options, fxaa=on))
+        images[on] = read_image(tmp_path / f"{on}/0000.png").astype(int)
+    grey = _grey(images[False])
+    edge = np.zeros(grey.shape, bool)
+    for dy, dx in ((0, 1), (1, 0)):
+        step = np.abs(grey[dy:, dx:] - grey[:grey.shape[0] - dy, :grey.shape[1] - dx]) > 8
+        edge[dy:, dx:] |= step
+        edge[:grey.shape[0] - dy, :grey.shape[1] - dx] |= step
+    near_edge = edge | np.roll(edge, 1, 0) | np.roll(edge, -1, 0) | np.roll(edge, 1, 1) | np.roll(edge, -1, 1)
+    changed = np.abs(images[True] - images[False]).max(axis=-1) > 2
+    assert changed.sum() > 150, changed.sum()
+    assert not (changed & ~near_edge).any(), np.argwhere(changed & ~near_edge)[:5]
+    # a changed pixel lies between its neighbours' extremes (a blend, not a new colour)
+    lo = np.minimum.reduce([np.roll(grey, s, a) for s in (-1, 0, 1) for a in (0, 1)])
+    hi = np.maximum.reduce([np.roll(grey, s, a) for s in (-1, 0, 1) for a in (0, 1)])
+    after = _grey(images[True])[changed]
+    assert ((after >= lo[changed] - 2) & (after <= hi[changed] + 2)).mean() > 0.97

@@ -340,6 +340,9 @@ def test_cross_rig_errors_are_what_the_report_says(walk, shared_file, target_fil
     result = retarget(source, target, target_path=target_file)
     rep, m = result.report, result.motion
     assert rep["map"]["how"] == f"rig profiles cmu_cgspeed -> {profile}"
+    why = rep["map"]["unmapped_why"]  # every unmapped joint has its reason (the source has no clavicle point)
+    assert sorted(why) == sorted(rep["map"]["unmapped_target_joints"])
+    assert why[{"bandai": "Shoulder_L", "daz": "lCollar"}[profile]] == "no l_clavicle in the source"
     assert rep["units"]["source_scale"] == pytest.approx(0.0254 / 0.45 / 0.01)
     assert m.joint_names == target.joint_names and m.channels == target.channels
     # independent: world positions of the output vs the scaled source positions

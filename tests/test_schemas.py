@@ -12,6 +12,7 @@ import pytest
 
 from usdmotion.errors import InputError
 from usdmotion.schemas import SCHEMA_NAMES, parse_text, schema, validate
+from usdmotion.skeleton_names import RIGS_FOLDER, rig_profiles
 from usdmotion.synthesis import example_path
 
 REPO = Path(__file__).resolve().parents[1]
@@ -31,6 +32,14 @@ def test_shipped_examples_validate():
     for name, schema_name in (("giant_swing.json", "synthesis"), ("giant_swing_limits.json", "limits")):
         document = json.loads((examples / name).read_text())
         assert validate(document, schema_name, name) is document  # raises InputError if invalid
+
+
+@pytest.mark.parametrize("path", sorted(RIGS_FOLDER.glob("*.json")), ids=lambda p: p.stem)
+def test_shipped_rig_profiles_validate(path):
+    # rig_profiles() reads them without jsonschema (start-up); this is their check
+    document = json.loads(path.read_text("utf-8"))
+    assert validate(document, "rigprofile", path.name) is document
+    assert rig_profiles()[document["name"]] == document
 
 
 @pytest.mark.parametrize("name, document, message", [

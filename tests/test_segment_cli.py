@@ -167,3 +167,21 @@ def test_bad_labels(shared_file, tmp_path, capsys):
     bad.write_text("a,b\n1,2\n")
     code, _, err = run(capsys, "segment-eval", shared_file("cmu/cgspeed_12_01_walk.bvh"), bad)
     assert code == 2 and f"{bad}: CSV needs columns" in err and len(err.strip().splitlines()) == 1
+
+
+def test_clip_export_reports_progress_after_each_clip(take_bvh, tmp_path):
+    from usdmotion.ops.segment.detect import segment
+    from usdmotion.ops.segment.files import export_clips
+
+    path, _ = take_bvh
+    motion = read_motion(path)
+    seg = segment(motion)
+    n = len(seg.bounds())
+    seen = []
+
+    def report(done, total, message):  # usdmotion.progress.Progress
+        seen.append((done, total, len(list(tmp_path.iterdir()))))
+
+    paths = export_clips(motion, seg, tmp_path, "bvh", "take", progress=report)
+    assert n > 1 and len(paths) == n
+    assert seen == [(k, n, k) for k in range(n + 1)]  # reported as each clip is about to be / has been written

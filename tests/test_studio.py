@@ -58,6 +58,25 @@ def test_outside_the_roots_is_not_found(studio, target):
     assert status == 404
 
 
+def test_scripts_are_revalidated_not_refetched(studio):
+    """The page's scripts carry an ETag and ``no-cache``: a reload asks again and gets 304 (no body)."""
+    import http.client
+    from urllib.parse import urlsplit
+
+    url = urlsplit(studio[0])
+    for path in ("/app/main.js", "/vendor/three/build/three.core.js"):
+        conn = http.client.HTTPConnection(url.hostname, url.port, timeout=30)
+        conn.request("GET", path)
+        first = conn.getresponse()
+        body = first.read()
+        assert first.status == 200 and len(body) > 1000
+        assert first.getheader("cache-control") == "no-cache" and first.getheader("etag")
+        conn.request("GET", path, headers={"If-None-Match": first.getheader("etag")})
+        again = conn.getresponse()
+        assert (again.status, again.read()) == (304, b"")
+        conn.close()
+
+
 def test_requests_are_read_only_and_bounded(studio):
     import http.client
     from urllib.parse import urlsplit

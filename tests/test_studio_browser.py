@@ -249,6 +249,8 @@ def test_url_reopens_the_same_frame_and_camera(studio, browser, page):
     url = page.url
     pose = page.evaluate("window.studio.player.cameraPose()")
     other = browser.new_page(viewport={"width": 1400, "height": 900})
+    asked = []
+    other.on("request", lambda r: asked.append(r.url.split("/api/")[1].split("?")[0]) if "/api/" in r.url else None)
     try:
         other.goto(url)
         other.wait_for_selector('body[data-loaded="1"]', state="attached", timeout=60_000)
@@ -256,6 +258,12 @@ def test_url_reopens_the_same_frame_and_camera(studio, browser, page):
         assert other.input_value("#camera") == "front"
         assert other.evaluate("window.studio.player.cameraPose()") == pose
         assert other.inner_text("#range") == "loop 0–77"
+        # the page asked for the take's arrays and body before its scripts ran, once, and drew into
+        # the WebGL context it opened then
+        assert [asked.count(what) for what in ("skeleton", "positions", "glb")] == [1, 1, 1], asked
+        assert asked.index("glb") < asked.index("takes")
+        assert other.evaluate("window.studio.player.renderer.getContext() === window.early.gl")
+        assert other.evaluate("window.studio.player.figure.body !== null")
     finally:
         other.close()
 
@@ -272,4 +280,8 @@ def test_stroboscope_exports_a_png(studio, page):
     assert href.startswith("data:image/png;base64,")
     image = Image.open(io.BytesIO(base64.b64decode(href.split(",", 1)[1])))
     assert image.size == tuple(page.evaluate("[window.studio.player.canvas.width, window.studio.player.canvas.height]"))
+    rgb = np.asarray(image.convert("RGB")).astype(int)
+    body = (np.abs(rgb - [0xc8, 0xb8, 0xa8]).max(axis=2) < 40).sum()
+    stick = ((rgb[..., 2] - rgb[..., 0] > 60) & (rgb[..., 2] > 120)).sum()  # the figure's blue
+    assert body > 6 * 500 and stick < 20, (body, stick)  # six bodies, no stick figures (stick=0 in the view)
     page.screenshot(path=SHOTS / "stroboscope.png")

@@ -1,6 +1,27 @@
-"""``python -m usdmotion`` = the ``usdmotion`` command."""
+"""``python -m usdmotion`` and the ``usdmotion`` console script.
 
-from usdmotion.cli import run
+:func:`run` routes Ctrl-C to one line and exit code 130 before anything else is imported:
+the CLI's imports (typer, the command's module) take a tenth of a second or more, and an
+interrupt there would otherwise print a Python traceback. Once :func:`usdmotion.cli.main`
+runs, its own handlers take over (they also remove temporary files of atomic writes).
+"""
+
+import os
+import signal
+
+
+def _interrupted_while_starting(signum: int, frame) -> None:
+    os.write(2, b"usdmotion: error: interrupted; no partial output was kept\n")  # nothing written yet
+    os._exit(128 + signum)
+
+
+def run() -> None:
+    """Console-script entry point."""
+    signal.signal(signal.SIGINT, _interrupted_while_starting)
+    from usdmotion.cli import run as run_cli
+
+    run_cli()
+
 
 if __name__ == "__main__":
     run()

@@ -41,6 +41,7 @@ import numpy as np
 from usdmotion.errors import InputError
 from usdmotion.kinematics import rest_positions
 from usdmotion.motion import Motion
+from usdmotion.schemas import load_document
 from usdmotion.skeleton_names import (LANDMARK_POINTS, SIDES, children_map, depth, distal_joint, farthest_leaf,
                                       fitting_preset, middle_joint_candidates, parse_side, preset_names_attribute,
                                       proximal_joint, rest_tolerance)
@@ -271,6 +272,4 @@ def body_model(motion: Motion, sex: str = "male", segment_map: Mapping | None = 
 
 def load_segment_map(path) -> dict:
     """Read and validate a segment map (JSON or YAML, ``schemas/body-segments.schema.json``)."""
-    from usdmotion.schemas import load_document
-
     return load_document(path, "body-segments")

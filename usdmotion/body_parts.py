@@ -17,6 +17,7 @@ import re
 import numpy as np
 
 from usdmotion.motion import Motion, subtree_indices
+from usdmotion.skeleton_names import ELBOW_WORDS, KNEE_WORDS, common_ancestor, parse_side
 
 
 #: Joints that are not body segments (twist and roll bones, IK targets and poles, helpers,
@@ -45,8 +46,6 @@ def body_groups(motion: Motion) -> np.ndarray:
       legs: a root bone at the floor, a static origin joint) and helper joints
       (:data:`NOT_BODY`) with only helpers or end sites below them.
     """
-    from usdmotion.skeleton_names import ELBOW_WORDS, KNEE_WORDS, common_ancestor, parse_side
-
     parents = motion.parents
     n = motion.n_joints
     groups = np.zeros(n, np.int64)
@@ -88,8 +87,6 @@ def head_joint(motion: Motion, groups: np.ndarray | None = None) -> int | None:
     """The joint the head hangs on: the shallowest trunk joint named ``head`` (not a head
     top or end), else the deepest side-less trunk joint with no trunk joint below it (the
     top of the neck of a rig without a head, ASF ``Neck``, if the rig has limbs); else None."""
-    from usdmotion.skeleton_names import parse_side
-
     groups = body_groups(motion) if groups is None else groups
     parents = motion.parents
     depth = np.zeros(motion.n_joints, int)
@@ -112,8 +109,6 @@ def head_joint(motion: Motion, groups: np.ndarray | None = None) -> int | None:
 def facing(motion: Motion, rest: np.ndarray, groups: np.ndarray, up: np.ndarray) -> np.ndarray | None:
     """Unit front direction ``(3,)`` of the bind pose (``left × up``), from the left and
     right limb roots; None when the rig has no sided limbs."""
-    from usdmotion.skeleton_names import parse_side
-
     sides = {"left": [], "right": []}
     for g in range(1, int(groups.max(initial=0)) + 1):
         root = int(np.flatnonzero(groups == g)[0])

@@ -29,7 +29,8 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from usdmotion.errors import InputError, UsdMotionWarning
-from usdmotion.ops.analyse.measures import Kinematics
+from usdmotion.ops.analyse.measures import Kinematics, analyse
+from usdmotion.schemas import load_document
 
 RANGE_KEYS = ("x", "y", "z", "bend")
 MAX_KEYS = ("max_angular_speed", "max_segment_angular_speed", "max_angular_acceleration", "max_speed",
@@ -146,8 +147,6 @@ def check_motion(motion, limits: Mapping, source: str | None = None, **analyse_o
 
     ``limits["euler_order"]`` (if set) picks the Euler decomposition of the angle limits.
     """
-    from usdmotion.ops.analyse.measures import analyse
-
     options = dict(analyse_options)
     if limits.get("euler_order"):
         options["euler_order"] = limits["euler_order"]
@@ -156,8 +155,6 @@ def check_motion(motion, limits: Mapping, source: str | None = None, **analyse_o
 
 def load_limits(path) -> dict:
     """Read and validate a limits document; also checks every ``[min, max]`` is ordered."""
-    from usdmotion.schemas import load_document
-
     limits = load_document(path, "limits")
     for pattern, rules in limits.get("joints", {}).items():
         for key in RANGE_KEYS:

@@ -53,6 +53,29 @@ def _qrot_planes(q, v):
             vz + w * tz + (x * ty - y * tx))
 
 
+def _fk_levels(local_rotations, local_translations, parents: np.ndarray):
+    """World rotation and position planes, one depth level at a time.
+
+    Yields ``(idx, q, p)``: the level's joint indices ``(n,)``, its world wxyz rotations
+    as 4 planes ``(..., n)`` and its world positions as 3 planes ``(..., n)``.
+    """
+    xp = array_namespace(local_rotations, local_translations)
+    levels = depth_levels(parents)
+    q_local = xp.moveaxis(xp.asarray(local_rotations), -1, 0)  # strided views: a copy costs more than it saves
+    t_local = xp.moveaxis(xp.asarray(local_translations), -1, 0)
+    root_idx = levels[0][0]
+    q_prev = tuple(c[..., root_idx] for c in q_local)
+    p_prev = tuple(c[..., root_idx] for c in t_local)
+    yield root_idx, q_prev, p_prev
+    for idx, parent_pos in levels[1:]:
+        q_parent = tuple(c[..., parent_pos] for c in q_prev)
+        p_parent = tuple(c[..., parent_pos] for c in p_prev)
+        q_prev = hamilton(q_parent, tuple(c[..., idx] for c in q_local))
+        offset = _qrot_planes(q_parent, tuple(c[..., idx] for c in t_local))
+        p_prev = tuple(a + b for a, b in zip(p_parent, offset))
+        yield idx, q_prev, p_prev
+
+
 def fk_arrays(local_rotations, local_translations, parents: np.ndarray):
     """World rotations and positions from local ones.
 
@@ -69,28 +92,23 @@ def fk_arrays(local_rotations, local_translations, parents: np.ndarray):
     one vectorised step per depth level.
     """
     xp = array_namespace(local_rotations, local_translations)
-    levels = depth_levels(parents)
-    q_local = xp.moveaxis(xp.asarray(local_rotations), -1, 0)  # strided views: a copy costs more than it saves
-    t_local = xp.moveaxis(xp.asarray(local_translations), -1, 0)
-    root_idx = levels[0][0]
-    q_prev = tuple(c[..., root_idx] for c in q_local)
-    p_prev = tuple(c[..., root_idx] for c in t_local)
-    q_parts, p_parts, order = [q_prev], [p_prev], [root_idx]
-    for idx, parent_pos in levels[1:]:
-        q_parent = tuple(c[..., parent_pos] for c in q_prev)
-        p_parent = tuple(c[..., parent_pos] for c in p_prev)
-        q_prev = hamilton(q_parent, tuple(c[..., idx] for c in q_local))
-        offset = _qrot_planes(q_parent, tuple(c[..., idx] for c in t_local))
-        p_prev = tuple(a + b for a, b in zip(p_parent, offset))
-        q_parts.append(q_prev)
-        p_parts.append(p_prev)
-        order.append(idx)
+    order, q_parts, p_parts = zip(*_fk_levels(local_rotations, local_translations, parents))
     inverse = np.argsort(np.concatenate(order))
     world_q = xp.stack([xp.concatenate([part[k] for part in q_parts], axis=-1)[..., inverse] for k in range(4)],
                        axis=-1)
     world_p = xp.stack([xp.concatenate([part[k] for part in p_parts], axis=-1)[..., inverse] for k in range(3)],
                        axis=-1)
     return world_q, world_p
+
+
+def position_bounds(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
+    """``(low (3,), high (3,))``: the box of every joint's world position over every frame
+    (file units) of a motion with at least one frame. Equal to the bounds of
+    :func:`joint_positions`, without assembling the ``(F, J, 3)`` array."""
+    planes = [p for _, _, p in _fk_levels(motion.rotations, local_translations(motion), motion.parents)]
+    low = np.array([min(float(level[k].min()) for level in planes) for k in range(3)])
+    high = np.array([max(float(level[k].max()) for level in planes) for k in range(3)])
+    return low, high
 
 
 def local_translations(motion: Motion) -> np.ndarray:

@@ -7,8 +7,13 @@ body-segment landmarks (:mod:`usdmotion.anthropometry`) and automatic retargetin
 * **Names.** :func:`strip_namespace` drops ``mixamorig:`` / ``group|`` prefixes;
   :func:`parse_side` splits a name into side and lower-case base
   (``mixamorig:LeftForeArm`` → ``("left", "forearm")``, ``lShldr`` → ``("left", "shldr")``,
-  ``Knee.R`` → ``("right", "knee")``); :func:`normalise_name` is the comparable key that
-  joint maps match names by.
+  ``Knee.R`` → ``("right", "knee")``, ``CC_Base_L_Calf`` → ``("left", "calf")``);
+  :func:`normalise_name` is the comparable key that joint maps match names by;
+  :func:`safe_key` the one rig profiles and presets match by (``Bip01_L_Thigh`` as a DCC
+  writes ``Bip01 L Thigh`` into USD).
+* **Marks.** :func:`joint_kinds` / :func:`marked_joints`: the twist, root and helper bones
+  a rig profile marks (no body points: joint maps leave them out and say why, bend angles
+  skip them).
 * **Limb words.** :data:`ELBOW_WORDS` and :data:`KNEE_WORDS`: base names of the middle
   joint of an arm and a leg (``forearm``, ``lowerarm``, ``radius``..., ``leg``, ``shin``,
   ``tibia``...); :data:`LIMB_WORDS` adds the other limb words a one-letter side prefix
@@ -87,7 +92,10 @@ def parse_side(name: str) -> tuple[str | None, str]:
     separator (``Knee.R``, ``LowerArm_L``); a leading ``l``/``r`` followed by a capital or
     a separator (``lShldr``, ``L_hand``) or by a limb word of :data:`LIMB_WORDS` (``rtibia``,
     ``lhand``, ``Lforearm``; capitals after the word are ignored, ``lhandIK``), so
-    ``lowerback`` and ``leg`` stay side-less.
+    ``lowerback`` and ``leg`` stay side-less; last, one side word between separators
+    inside the name, the base being what follows it (``CC_Base_L_Calf`` → ``("left",
+    "calf")``, ``Bip01 R Forearm`` → ``("right", "forearm")``; not End Sites,
+    ``Hand_L_End`` stays side-less as before).
     """
     name = strip_namespace(name)
     if m := _SIDE_WORD_FIRST.match(name):
@@ -100,11 +108,17 @@ def parse_side(name: str) -> tuple[str | None, str]:
         rest = m.group(2)
         if _WORD_BREAK.match(rest) or base_name(rest) in LIMB_WORDS or re.sub(r"[^a-z0-9]", "", rest) in LIMB_WORDS:
             return _letter_side(m.group(1)), base_name(rest)
+    words = _SEPARATORS.split(name)
+    sides = [k for k, w in enumerate(words[:-1]) if k > 0 and w.lower() in _SIDE_TOKENS]
+    if len(sides) == 1 and words[-1].lower() != "end":  # a side word inside: CC_Base_L_Calf, Bip01 L Thigh
+        k = sides[0]
+        return _letter_side(words[k][0]), base_name("".join(words[k + 1:]))
     return None, base_name(name)
 
 
 _TOKENS = re.compile(r"[A-Z]+(?![a-z])|[A-Z]?[a-z]+|[0-9]+")
 _SIDE_TOKENS = {"left": "l", "l": "l", "right": "r", "r": "r"}
+_SEPARATORS = re.compile(r"[_.\- ]+")
 
 
 def normalise_name(name: str) -> str:
@@ -135,13 +149,15 @@ def split_side(key: str) -> tuple[str | None, str]:
 
 @lru_cache(maxsize=1)
 def rig_profiles() -> dict[str, dict]:
-    """Built-in rig profiles by name (validated against ``rigprofile.schema.json``)."""
-    from usdmotion.schemas import validate
+    """Built-in rig profiles by name.
 
+    They are package data, not user input: ``tests/test_schemas.py`` validates every one
+    against ``rigprofile.schema.json``, so reading them here needs no jsonschema (0.05 s of
+    every command's start-up, since every BVH read checks its units through them).
+    """
     out = {}
     for entry in sorted(RIGS_FOLDER.glob("*.json")):
         doc = json.loads(entry.read_text("utf-8"))
-        validate(doc, "rigprofile", f"usdmotion/data/rigs/{entry.name}")
         out[doc["name"]] = doc
     return out
 
@@ -155,15 +171,31 @@ def names_by_key(names: Iterable[str], key: Callable[[str], str]) -> dict[str, s
     return table
 
 
+_UNSAFE = re.compile(r"[^0-9A-Za-z_]")
+
+
+def safe_key(name: str) -> str:
+    """``name`` with every character a USD identifier cannot hold made ``_``: how DCC tools
+    write ``Bip01 L Thigh``, ``DEF-thigh.L`` as USD joint paths (``Bip01_L_Thigh``, ``DEF_thigh_L``).
+    Rig profiles and presets match names by it."""
+    return _UNSAFE.sub("_", name)
+
+
+def _profile_key(name: str) -> str:
+    return safe_key(strip_namespace(name))
+
+
 def profile_joints(profile: dict, names: Iterable[str]) -> dict[str, str] | None:
-    """Canonical point → joint name of ``names`` if the skeleton fits ``profile``, else ``None``."""
-    table = names_by_key(names, strip_namespace)
-    if any(s not in table for s in profile["signature"]):
+    """Canonical point → joint name of ``names`` if the skeleton fits ``profile``, else ``None``.
+
+    Names are compared without namespace and by :func:`safe_key`."""
+    table = names_by_key(names, _profile_key)
+    if not all(_has_any(table, s) for s in profile["signature"]):
         return None
     resolved = {}
     for point, candidates in profile["joints"].items():
         candidates = [candidates] if isinstance(candidates, str) else candidates
-        hit = next((table[c] for c in candidates if c in table), None)
+        hit = next((table[_profile_key(c)] for c in candidates if _profile_key(c) in table), None)
         if hit is not None:
             resolved[point] = hit
         elif point not in profile["optional"]:
@@ -171,20 +203,66 @@ def profile_joints(profile: dict, names: Iterable[str]) -> dict[str, str] | None
     return resolved
 
 
+def _has_any(table: Mapping[str, str], candidates: str | Sequence[str]) -> bool:
+    return any(_profile_key(c) in table for c in ([candidates] if isinstance(candidates, str) else candidates))
+
+
 def detect_profile(names: Iterable[str]) -> str | None:
     """Name of the built-in profile a skeleton fits (most points resolved), or ``None``.
 
     Profiles with ``"auto_map": false`` are left out: they are used only where named.
+    ``"generic"`` profiles (names other rigs share, e.g. HumanIK's) count only when no
+    other profile fits.
     """
     names = list(names)
-    best, best_count = None, 0
-    for name, profile in rig_profiles().items():
-        if not profile.get("auto_map", True):
+    for generic in (False, True):
+        best, best_count = None, 0
+        for name, profile in rig_profiles().items():
+            if not profile.get("auto_map", True) or profile.get("generic", False) != generic:
+                continue
+            resolved = profile_joints(profile, names)
+            if resolved is not None and len(resolved) > best_count:
+                best, best_count = name, len(resolved)
+        if best is not None:
+            return best
+    return None
+
+
+#: What a joint that is no body point of its rig's profile is (:func:`joint_kinds`).
+JOINT_KINDS = ("twist", "floor root", "hips root", "helper")
+
+
+def joint_kinds(profile: dict, names: Iterable[str]) -> dict[str, str]:
+    """Joint name → kind (one of :data:`JOINT_KINDS`) for the joints of ``names`` that
+    ``profile`` marks as twist segments, root bones or helpers (namespaces ignored); a joint
+    the profile names as a body point (Biped's ``Bip01 HeadNub`` head top) is never marked."""
+    names = list(names)
+    twist = [re.compile(p) for p in profile.get("twist", ())]
+    helpers = [re.compile(p) for p in profile.get("helpers", ())]
+    roots = {_profile_key(k): v for k, v in profile.get("roots", {}).items()}
+    body = set((profile_joints(profile, names) or {}).values())
+    out = {}
+    for name in names:
+        bare = strip_namespace(name)
+        if name in body:
             continue
-        resolved = profile_joints(profile, names)
-        if resolved is not None and len(resolved) > best_count:
-            best, best_count = name, len(resolved)
-    return best
+        if _profile_key(name) in roots:
+            out[name] = f"{roots[_profile_key(name)]} root"
+        elif any(p.fullmatch(bare) for p in twist):
+            out[name] = "twist"
+        elif any(p.fullmatch(bare) for p in helpers):
+            out[name] = "helper"
+    return out
+
+
+def marked_joints(names: Sequence[str]) -> dict[int, str]:
+    """Joint index → kind (:data:`JOINT_KINDS`) of the joints that the rig profile a skeleton
+    fits (:func:`detect_profile`) marks as twist segments, root bones or helpers; empty if none fits."""
+    profile = detect_profile(names)
+    if profile is None:
+        return {}
+    kinds = joint_kinds(rig_profiles()[profile], names)
+    return {j: kinds[n] for j, n in enumerate(names) if n in kinds}
 
 
 # --------------------------------------------------------------------------- presets
@@ -276,13 +354,26 @@ def preset_named(kind: str, name: str) -> RigPreset | None:
 def fitting_preset(kind: str, names: Iterable[str], keys: Sequence[str],
                    parts: Mapping[str, str]) -> tuple[RigPreset, dict[str, str]] | None:
     """The first ``kind`` preset whose joints for ``keys`` and whose signature all exist
-    in ``names`` (exact names), with ``key → joint name``; ``None`` if none fits."""
+    in ``names`` (exact names, or the same :func:`safe_key`), with ``key → joint name`` of
+    ``names``; ``None`` if none fits."""
+    names = list(names)
     present = set(names)
     for preset in rig_presets(kind):
-        joints = preset.joints(keys, parts)
-        if set(joints.values()) | set(preset.signature) <= present:
+        joints = actual_names(preset.joints(keys, parts), names)
+        signature = actual_names({n: n for n in preset.signature}, names)
+        if set(joints.values()) | set(signature.values()) <= present:
             return preset, joints
     return None
+
+
+def actual_names(wanted: Mapping[str, str], names: Iterable[str]) -> dict[str, str]:
+    """``wanted`` (key → exact joint name of a preset) with each name replaced by the joint of
+    ``names`` that has the same :func:`safe_key` (``Bip01_L_Thigh`` for ``Bip01 L Thigh``);
+    names with no such joint stay as they are."""
+    names = list(names)
+    present = set(names)
+    table = names_by_key(names, safe_key)
+    return {k: n if n in present else table.get(safe_key(n), n) for k, n in wanted.items()}
 
 
 # ------------------------------------------------------------------------- hierarchy

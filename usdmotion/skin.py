@@ -46,9 +46,10 @@ import numpy as np
 
 from usdmotion.errors import UsdMotionError
 from usdmotion.kinematics import compose_transforms, fk_arrays, local_translations, rest_pose
+from usdmotion.motion import Motion, subtree_indices
+from usdmotion.skeleton_names import parse_side
 from usdmotion.body_parts import (HEAD_HEIGHT, HEAD_HEIGHT_RANGE, HEAD_RADIUS, NO_BODY, TRUNK, TRUNK_END_RADIUS,
                                   tree_distance, body_groups, facing, head_joint)
-from usdmotion.motion import Motion, subtree_indices
 
 #: Influences (joints) per vertex; UsdSkel's ``elementSize`` of the skinning primvars.
 INFLUENCES = 4
@@ -196,7 +197,6 @@ def bone_capsules(motion: Motion, thickness: float = 1.0, positions: np.ndarray 
     r0 = np.array([t[0] if t else d for t, d in zip(table, default)]) * size * thickness
     r1 = np.array([t[1] if t else d for t, d in zip(table, default)]) * size * thickness
     # the trunk narrows to the neck and to the shoulder and hip joints (no dome over them)
-    from usdmotion.skeleton_names import parse_side
 
     to_limb = np.array([groups[p] == TRUNK and (parse_side(names[c])[0] is not None
                                                 or "neck" in names[c].rsplit(":", 1)[-1].lower())

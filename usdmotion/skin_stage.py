@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from usdmotion.io.usd_skin import usable_meshes
 from usdmotion.motion import Motion
 from usdmotion.skin import Body, bind_transforms, body_size
 
@@ -36,8 +37,6 @@ def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
 def stage_body(motion: Motion, source=None) -> Body | None:
     """The motion's carried skinned meshes merged into one ``Body``; ``None`` if it has none
     (or none still fits the skeleton: :func:`usdmotion.io.usd_skin.usable_meshes` warns)."""
-    from usdmotion.io.usd_skin import usable_meshes
-
     meshes = usable_meshes(motion, source or "render", blend_shape_warning=False)
     if not meshes:
         return None

@@ -30,9 +30,11 @@ from pathlib import Path
 
 import numpy as np
 
+from usdmotion.channels import resolve_units
 from usdmotion.errors import InputError
 from usdmotion.motion import Motion
 from usdmotion.rotations import check_euler_order, euler_to_quat
+from usdmotion.schemas import load_document
 
 EXAMPLES = ("giant_swing",)
 _AXES = ("X", "Y", "Z")
@@ -217,8 +219,6 @@ def motion_from_spec(spec: Mapping, source: str | os.PathLike | None = None,
     ``"table": "file.csv"`` (relative to ``base_dir``) adds columns ``Joint.X`` and
     ``root.X``... to the inline ``angles`` / ``root_position``.
     """
-    from usdmotion.channels import resolve_units
-
     source = None if source is None else str(source)
     joints = [JointSpec(j["name"], j.get("parent"), tuple(j.get("offset", (0.0, 0.0, 0.0))),
                         None if j.get("end_site") is None else tuple(j["end_site"]), j.get("rotation_order"))
@@ -270,8 +270,6 @@ def example_path(name: str) -> Path:
 
 def load_synthesis(path: str | os.PathLike) -> Motion:
     """Read, validate and build a synthesis document (``.json``, ``.yaml``, ``.yml``)."""
-    from usdmotion.schemas import load_document
-
     path = Path(path)
     spec = load_document(path, "synthesis")
     return motion_from_spec(spec, path, path.parent)

@@ -21,7 +21,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from usdmotion.anthropometry import find_landmarks
 from usdmotion.constants import METERS_PER_UNIT
+from usdmotion.errors import UsdMotionWarning
+from usdmotion.kinematics import joint_positions
 from usdmotion.motion import Motion
 
 CANDIDATES = ("cm", "m", "mm", "in", "asf", "ft")
@@ -63,8 +66,6 @@ def _chain_length(parents: np.ndarray, offsets: np.ndarray, a: int, b: int) -> f
 
 
 def _sample_positions(motion: Motion) -> np.ndarray:
-    from usdmotion.kinematics import joint_positions
-
     idx = np.unique(np.linspace(0, max(motion.n_frames - 1, 0), SAMPLE_FRAMES).astype(int))
     jt = None if motion.joint_translations is None else motion.joint_translations[idx]
     return joint_positions(motion.with_frames(motion.rotations[idx], motion.root_translation[idx], jt))
@@ -73,8 +74,6 @@ def _sample_positions(motion: Motion) -> np.ndarray:
 def guess_body(motion: Motion, up: bool = True) -> BodyGuess:
     """Guess units and (if ``up``; it needs forward kinematics) the up axis of ``motion``
     from its head and ankles (see the module docstring)."""
-    from usdmotion.anthropometry import find_landmarks
-
     found, _ = find_landmarks(motion)
     head = found.get("head_top") if found.get("head_top") is not None else found.get("neck")
     ankles = [found.get("left_ankle"), found.get("right_ankle")]
@@ -131,8 +130,6 @@ def apply_body_guess(motion: Motion, source, auto_units: bool, auto_up: bool) ->
     (or why there is none and the value kept); then the implausible-height warning."""
     import dataclasses
     import warnings
-
-    from usdmotion.errors import UsdMotionWarning
 
     guess = guess_body(motion, up=auto_up)
     changes = {}

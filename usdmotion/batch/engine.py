@@ -6,6 +6,8 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
+import signal
+import threading
 import uuid
 from collections.abc import Iterable, Iterator
 
@@ -55,11 +57,50 @@ def _client(workers: int | None, scheduler: str | None, memory_limit: str | int)
         return
     if workers is not None and workers < 1:
         raise ValueError(f"--workers must be at least 1, got {workers}")
-    with LocalCluster(n_workers=workers or default_workers(), threads_per_worker=1, processes=True,
-                      memory_limit=memory_limit, dashboard_address=None, worker_dashboard_address=None,
-                      env={"USDMOTION_THREADS": "1"},  # one take per core: no threads inside a take
-                      silence_logs=logging.CRITICAL) as cluster, Client(cluster) as client:
+    with _interrupts_ignored():  # the worker processes start ignoring Ctrl-C (see _interrupts_ignored)
+        cluster = LocalCluster(n_workers=workers or default_workers(), threads_per_worker=1, processes=True,
+                               memory_limit=memory_limit, dashboard_address=None, worker_dashboard_address=None,
+                               # no dashboard; its HTTP server on any free port, not 8787 (no "port in use" warning)
+                               scheduler_kwargs={"dashboard_address": ":0"},
+                               env={"USDMOTION_THREADS": "1"},  # one take per core: no threads inside a take
+                               silence_logs=logging.CRITICAL)
+    with cluster, Client(cluster) as client:
+        client.register_plugin(_ignore_interrupts_plugin())  # workers the nanny restarts later
         yield client
+
+
+@contextlib.contextmanager
+def _interrupts_ignored() -> Iterator[None]:
+    """SIGINT ignored while the local workers are spawned: they inherit the disposition (Python
+    and asyncio leave an ignored SIGINT ignored), so a terminal's Ctrl-C, sent to the whole
+    process group, reaches only this process, which cancels the batch and closes the cluster,
+    instead of every worker printing a KeyboardInterrupt traceback. A Ctrl-C within this
+    second of start-up is not seen."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def _ignore_interrupts_plugin():
+    """A worker plugin that ignores SIGINT in each worker process, restarted ones included."""
+    from distributed import WorkerPlugin
+
+    class IgnoreInterrupts(WorkerPlugin):
+        name = "usdmotion-ignore-interrupts"
+
+        def setup(self, worker) -> None:
+            import signal
+            import threading
+
+            if threading.current_thread() is threading.main_thread():
+                signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+    return IgnoreInterrupts()
 
 
 #: Modules each operation's tasks import (loaded once per worker by :func:`warm_up`).

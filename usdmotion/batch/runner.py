@@ -10,6 +10,7 @@ from pathlib import Path
 
 from usdmotion.batch.catalogue import read_catalogue, write_catalogue
 from usdmotion.batch.plan import CATALOGUE, DEFAULT_INCLUDE, plan_jobs, up_to_date
+from usdmotion.progress import Progress, no_progress
 
 #: Seconds between catalogue saves during a run (a killed client loses at most this much).
 SAVE_EVERY_S = 10.0
@@ -44,13 +45,12 @@ class BatchResult:
 def run_batch(operation: str, src_dir: str | Path, out_dir: str | Path, read_options: dict | None = None,
               params: dict | None = None, include: tuple[str, ...] = DEFAULT_INCLUDE, force: bool = False,
               workers: int | None = None, scheduler: str | None = None, client=None,
-              on_start: Callable[[int], None] | None = None,
-              on_row: Callable[[dict], None] | None = None) -> BatchResult:
+              progress: Progress = no_progress, on_row: Callable[[dict], None] | None = None) -> BatchResult:
     """Run ``operation`` on every take under ``src_dir``; outputs and ``catalogue.parquet`` in ``out_dir``.
 
     Takes whose catalogue row is ok (same options) and whose outputs are newer than the
-    source are skipped unless ``force``. ``on_start(n)`` is told how many takes will run,
-    ``on_row(row)`` gets each finished row. ``client``: an open ``distributed.Client`` to
+    source are skipped unless ``force``. ``progress(done, n, message)`` counts the takes
+    that run (``n``: those not skipped), ``on_row(row)`` gets each finished row. ``client``: an open ``distributed.Client`` to
     use instead of starting a cluster (``workers``/``scheduler`` are then ignored). The
     catalogue is saved every :data:`SAVE_EVERY_S` seconds, at the end, and on Ctrl-C
     (atomically each time).
@@ -64,8 +64,7 @@ def run_batch(operation: str, src_dir: str | Path, out_dir: str | Path, read_opt
     rows = read_catalogue(path)
     todo = [j for j in jobs if force or not up_to_date(j, rows.get((j.operation, j.take)))]
     result = BatchResult(total=len(jobs), skipped=len(jobs) - len(todo), catalogue=path)
-    if on_start is not None:
-        on_start(len(todo))
+    progress(0, len(todo), f"batch {operation}")
     if todo:
         with contextlib.nullcontext(client) if client is not None else dask_client(workers, scheduler) as dask:
             out_dir.mkdir(parents=True, exist_ok=True)  # only once the cluster is there (bad --scheduler: no output)
@@ -75,6 +74,7 @@ def run_batch(operation: str, src_dir: str | Path, out_dir: str | Path, read_opt
                 for row in run_jobs(dask, todo):
                     rows[(row["operation"], row["take"])] = row
                     result.rows.append(row)
+                    progress(len(result.rows), len(todo), f"batch {operation}: {row['relpath']}")
                     if on_row is not None:
                         on_row(row)
                     if time.perf_counter() - saved > SAVE_EVERY_S:

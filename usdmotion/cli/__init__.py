@@ -127,6 +127,8 @@ def main(argv: list[str] | None = None) -> int:
         _error("aborted")
         return 130
     except typer.TyperException as exc:  # usage errors: bad option, missing argument
+        if type(exc).__name__ == "NoArgsIsHelpError":  # `usdmotion`, `usdmotion batch`: the help is printed
+            return 0
         message = exc.format_message().splitlines()
         _error((message[0] if message else type(exc).__name__) + " (see --help)")
         return 2

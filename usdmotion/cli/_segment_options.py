@@ -35,7 +35,8 @@ Roles = Annotated[list[str] | None, typer.Option(
     "--role", help="Name a role's joint, e.g. --role chest=Spine2 (repeatable). Roles: root, chest, "
                    "left_/right_ shoulder, elbow, wrist, hip, knee, ankle.", show_default=False)]
 Preset = Annotated[str | None, typer.Option(
-    help="Role preset: cgspeed-mb, cgspeed-max, daz, bandai, mixamo, asf (default: detect, else guess by name).",
+    help="Role preset: cgspeed-mb, cgspeed-max, daz, bandai, mixamo, asf, character-creator, unreal, rigify, "
+         "biped, smpl (default: detect, else guess by name).",
     show_default=False)]
 
 

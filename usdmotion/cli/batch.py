@@ -50,19 +50,9 @@ def _run(operation: str, src_dir: Path, out_dir: Path, read_options: dict, param
     from usdmotion.batch.plan import DEFAULT_INCLUDE
     from usdmotion.cli._progress import progress
 
-    counts = {"total": None, "done": 0}
-
-    def started(n: int) -> None:
-        counts["total"] = n
-
-    def finished(row: dict) -> None:
-        counts["done"] += 1
-        update(counts["done"], counts["total"], f"batch {operation}: {row['relpath']}")
-
     with progress(f"batch {operation}", unit="takes") as update:
         result = run_batch(operation, src_dir, out_dir, read_options, params,
-                           tuple(include) if include else DEFAULT_INCLUDE, force, workers, scheduler,
-                           on_start=started, on_row=finished)
+                           tuple(include) if include else DEFAULT_INCLUDE, force, workers, scheduler, progress=update)
     for row in result.failed:
         where = "" if row["error"].startswith(row["source"]) else f"{row['source']}: "
         typer.echo(f"usdmotion: error: {where}{row['error']}", err=True)

@@ -9,6 +9,7 @@ from typing import Annotated
 import typer
 
 from usdmotion.cli._options import InputPath, Json, ReadOptions, reads_motion
+from usdmotion.cli._progress import progress
 from usdmotion.cli._segment_options import DetectorOptions, Method, MethodChoice, detects_segments, print_segments
 from usdmotion.cli.app import app
 
@@ -50,6 +51,7 @@ def segment(
         plot_segmentation(seg, plot, f"{source.name}: {seg.method}, {len(seg.bounds())} segments", chosen)
     clips = []
     if export_clips is not None:
-        clips = write_clips(motion, seg, export_clips, clip_format.value, source.stem,
-                            None if chosen is None else [chosen])
+        with progress("writing clips", unit="clips") as update:
+            clips = write_clips(motion, seg, export_clips, clip_format.value, source.stem,
+                                None if chosen is None else [chosen], progress=update)
     print_segments(seg, source, chosen, as_json, clips)

@@ -10,8 +10,10 @@ import os
 from pathlib import Path
 
 from usdmotion.channels import override_units_axis
-from usdmotion.errors import InputError, OutputError
+from usdmotion.constants import MAX_ABS_VALUE
+from usdmotion.errors import InputError, OutputError, TopologyError, UsdMotionWarning
 from usdmotion.motion import Motion
+from usdmotion.units_guess import apply_body_guess
 
 BVH_EXTENSIONS = (".bvh",)
 USD_EXTENSIONS = (".usd", ".usda", ".usdc", ".usdz")
@@ -67,8 +69,6 @@ def read_motion(path: str | os.PathLike, root_offset: str = "auto", units: str |
 
     import numpy as np
 
-    from usdmotion.errors import TopologyError
-
     path = Path(path)
     try:
         with warnings.catch_warnings(), np.errstate(all="warn"):
@@ -99,8 +99,6 @@ def check_magnitudes(motion: Motion, path: str | os.PathLike | None) -> None:
     """
     import numpy as np
 
-    from usdmotion.constants import MAX_ABS_VALUE
-
     arrays = {"joint offsets": motion.offsets, "root translation": motion.root_translation,
               "joint translations": motion.joint_translations, "rotations": motion.rotations}
     for name, a in arrays.items():
@@ -114,9 +112,9 @@ def check_magnitudes(motion: Motion, path: str | os.PathLike | None) -> None:
 
 def _read(path: Path, root_offset: str, units, up_axis, lenient: bool, ignore_joint_positions: bool,
           skeleton: str | None, resample: bool) -> Motion:
-    from usdmotion.units_guess import apply_body_guess
-
     kind = _kind(path)
+    # Each format's reader is imported where it is used (here and in write_motion), deliberately:
+    # reading a BVH imports no USD or glTF module (start-up, tests/test_startup.py).
     if skeleton is not None:
         if kind == "bvh":
             raise InputError(path, "--skeleton does not apply to BVH input (a BVH file holds one skeleton)")
@@ -155,8 +153,6 @@ def _say_meshes_dropped(motion: Motion, path: Path, why: str) -> None:
     if motion.meshes:
         import warnings
 
-        from usdmotion.errors import UsdMotionWarning
-
         warnings.warn(f"{path}: the skinned meshes ({', '.join(m.name for m in motion.meshes)}) are not written: "
                       f"{why} (write .usd/.usda/.usdc/.usdz to keep them)", UsdMotionWarning, stacklevel=3)
 
@@ -164,7 +160,7 @@ def _say_meshes_dropped(motion: Motion, path: Path, why: str) -> None:
 def write_motion(motion: Motion, path: str | os.PathLike, **options) -> Path:
     """Write ``motion`` as BVH, USD or glTF, chosen by the extension of ``path`` (atomically)."""
     path = Path(path)
-    kind = _kind(path)
+    kind = _kind(path)  # only the writer of that format is imported (see _read)
     if kind == "bvh":
         from usdmotion.io.bvh_write import write_bvh
 

@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from usdmotion.channels import resolve_units
 from usdmotion.errors import InputError
 from usdmotion.io.asf import AsfSkeleton, read_asf
 from usdmotion.motion import Motion
@@ -253,7 +254,5 @@ def read_amc(path: str | os.PathLike, skeleton: str | os.PathLike | AsfSkeleton 
     values, degrees = parse_amc(text, skeleton, path)
     meters = None
     if units is not None:
-        from usdmotion.channels import resolve_units
-
         meters = resolve_units(units)
     return motion_from_amc(skeleton, values, degrees=degrees, fps=fps, layout=layout, meters_per_unit=meters)

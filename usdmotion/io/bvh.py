@@ -32,6 +32,7 @@ from usdmotion.constants import MAX_ABS_VALUE, MAX_FRAMES
 from usdmotion.errors import BvhParseError, UsdMotionWarning
 from usdmotion.io.bvh_header import BvhHeader, frame_rate, header_arrays, parse_header
 from usdmotion.io.bvh_rows import line_of_row, parse_rows
+from usdmotion.kinematics import fk_arrays
 from usdmotion.motion import POSITION_CHANNELS, ROTATION_CHANNELS, Motion, RootOffset
 from usdmotion.parallel import over_slices
 from usdmotion.rotations import half_angles_to_quat
@@ -269,8 +270,6 @@ def world_like_position_joints(motion: Motion) -> list[int]:
     parent frame actually moves (a static identity parent at the origin, like Bandai's
     ``joint_Root``, makes local and world the same thing).
     """
-    from usdmotion.kinematics import fk_arrays
-
     if motion.joint_translations is None or motion.n_frames == 0:
         return []
     with_offsets = np.broadcast_to(motion.offsets, motion.joint_translations.shape).copy()

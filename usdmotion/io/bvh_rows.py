@@ -1,24 +1,33 @@
 """Parsing the BVH motion rows into one ``(F, C)`` float array, vectorised.
 
-Three paths, fastest first:
+Two paths, fastest first:
 
-1. pyarrow's CSV reader (C++, multi-threaded, correctly rounded floats) on the raw
-   bytes, single spaces between values: the layout nearly every exporter writes.
-2. The same after a vectorised NumPy pass that collapses runs of spaces/tabs and strips
-   leading/trailing whitespace and ``\\r`` on every line.
-3. Only when a file is broken: a per-line scan that names the first bad line and
-   column (or, with ``lenient``, keeps the complete rows and says what it dropped).
+1. NumPy's C text reader (``np.loadtxt`` on the bytes, whitespace-separated, no comment
+   character): any runs of spaces and tabs, ``\\r\\n`` line ends and blank lines; floats
+   correctly rounded, like ``float()``. It reads the buffer in chunks (no per-line Python
+   objects) and needs no pyarrow: pyarrow's CSV reader, used here before, cost 0.03 s of
+   import on every BVH read and more CPU time than this on large files
+   (``benchmarks/startup.py``, ``benchmarks/parse_convert.py``).
+2. Only when a file is broken (a row of another length, a token that is not a number,
+   bytes that are not UTF-8): a per-line scan that names the first bad line and column
+   (or, with ``lenient``, keeps the complete rows and says what it dropped). Whatever the
+   first path accepts, this one reads to the same values (``float`` of the same tokens).
 """
 
 from __future__ import annotations
 
 import io
+import re
 import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
 from usdmotion.errors import BvhParseError, UsdMotionWarning
+
+#: A digit: rows without one (blank, or only Unicode blanks such as U+2028, which loadtxt
+#: reads as no data, with a warning) are left to the line scan.
+_DIGIT = re.compile(rb"[0-9]")
 
 
 @dataclass
@@ -30,64 +39,15 @@ class Rows:
     first_dropped_line: int | None = None
 
 
-def _arrow_parse(buf: bytes, n_channels: int) -> np.ndarray | None:
-    """``(F, C)`` float64 via pyarrow, or ``None`` if the bytes are not clean rows."""
-    import pyarrow as pa
-    import pyarrow.csv as pcsv
-
-    if n_channels == 0 or not buf or buf.isspace():
+def _fast_parse(buf: bytes, n_channels: int) -> np.ndarray | None:
+    """``(F, C)`` float64 via NumPy's text reader, or ``None`` if the bytes are not clean rows."""
+    if n_channels == 0 or _DIGIT.search(buf) is None:
         return None
-    read = pcsv.ReadOptions(autogenerate_column_names=True, block_size=1 << 22)
-    parse = pcsv.ParseOptions(delimiter=" ", quote_char=False, escape_char=False,
-                              double_quote=False, ignore_empty_lines=True)
-    convert = pcsv.ConvertOptions(
-        column_types={f"f{k}": pa.float64() for k in range(n_channels)},
-        null_values=[], strings_can_be_null=False, quoted_strings_can_be_null=False,
-    )
     try:
-        table = pcsv.read_csv(io.BytesIO(buf), read_options=read, parse_options=parse,
-                              convert_options=convert)
-    except (pa.ArrowInvalid, pa.ArrowTypeError, pa.ArrowNotImplementedError):
+        values = np.loadtxt(io.BytesIO(buf), dtype=np.float64, comments=None, ndmin=2, encoding="utf-8")
+    except ValueError:  # a row of another length, a non-number, invalid UTF-8 (UnicodeDecodeError)
         return None
-    if table.num_columns != n_channels:
-        return None
-    out = np.empty((table.num_rows, n_channels), dtype=np.float64)
-    for k, column in enumerate(table.columns):
-        out[:, k] = np.concatenate([_float64_values(chunk) for chunk in column.chunks]) if column.chunks else []
-    return out
-
-
-def _float64_values(chunk) -> np.ndarray:
-    """The values of a null-free float64 pyarrow array, read from its data buffer:
-    ``Array.to_numpy`` would import pandas (0.16 s of start-up) for nothing."""
-    return np.frombuffer(chunk.buffers()[1], dtype=np.float64, count=len(chunk), offset=chunk.offset * 8)
-
-
-def normalize_whitespace(buf: bytes) -> bytes:
-    """Collapse whitespace runs to one space and strip every line (vectorised).
-
-    Removes ``\\r``, tabs and other blanks at line starts and ends; keeps ``\\n``.
-    """
-    b = np.frombuffer(buf, dtype=np.uint8)
-    if b.size == 0:
-        return buf
-    newline = b == 10
-    blank = (b == 32) | (b == 9) | (b == 13) | (b == 11) | (b == 12)
-    content = ~(blank | newline)
-    # a blank is kept iff it is the last of its run, followed by content, and the line
-    # already had content before it
-    next_is_content = np.zeros_like(content)
-    next_is_content[:-1] = content[1:]
-    index = np.arange(b.size)
-    last_newline = np.maximum.accumulate(np.where(newline, index, -1))
-    content_count = np.cumsum(content)
-    count_at_line_start = np.where(last_newline >= 0, content_count[np.maximum(last_newline, 0)], 0)
-    has_content_before = (content_count - content) > count_at_line_start
-    keep = content | newline | (blank & next_is_content & has_content_before)
-    out = b[keep].copy()
-    out[out == 9] = 32
-    out[(out == 11) | (out == 12) | (out == 13)] = 32
-    return out.tobytes()
+    return values if values.size and values.shape[1] == n_channels else None
 
 
 def _line_scan(buf: bytes, n_channels: int, first_line: int, path: str | None,
@@ -156,9 +116,7 @@ def parse_rows(buf: bytes, n_channels: int, first_line: int, path: str | None,
                 raise BvhParseError(path, "motion row has values but the hierarchy declares no channels",
                                     first_line + k)
         return Rows(np.zeros((0, 0)))
-    values = _arrow_parse(buf, n_channels)
-    if values is None:
-        values = _arrow_parse(normalize_whitespace(buf), n_channels)
+    values = _fast_parse(buf, n_channels)
     if values is not None:
         return Rows(values)
     rows = _line_scan(buf, n_channels, first_line, path, lenient)

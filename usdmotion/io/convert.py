@@ -10,6 +10,7 @@ import os
 from pathlib import Path
 
 from usdmotion.errors import OutputError
+from usdmotion.io import write_motion
 from usdmotion.motion import Motion
 
 USD_SUFFIXES = (".usd", ".usda", ".usdc", ".usdz")
@@ -32,23 +33,21 @@ def convert_motion(motion: Motion, output: str | os.PathLike, mesh: bool = False
         mesh: add a volumetric body mesh skinned to the skeleton (USD and glTF outputs).
         validate: run ``pxr.UsdValidation`` on a USD output; the problems are returned, not raised.
     """
-    from usdmotion.io import write_motion
-
     output = Path(output)
     options = {}
     if mesh:
-        from usdmotion.skin import build_body
+        from usdmotion.skin import build_body  # --mesh only
 
         body = build_body(motion)
         if output.suffix.lower() in GLTF_SUFFIXES:
             options["body"] = body
         else:
-            from usdmotion.io.usd_mesh import body_decorator
+            from usdmotion.io.usd_mesh import body_decorator  # --mesh only
 
             options["decorate"] = body_decorator(body)
     write_motion(motion, output, **options)
     if validate and output.suffix.lower() in USD_SUFFIXES:
-        from usdmotion.io.usd import validate_stage
+        from usdmotion.io.usd import validate_stage  # USD outputs only: a BVH convert imports no USD module
 
         return list(validate_stage(str(output)))
     return []

@@ -143,11 +143,11 @@ def build_gltf(motion: Motion, *, mesh: bool = False, fps: float | None = None, 
     import pygltflib
 
     if fps is not None and not np.isclose(fps, motion.fps, rtol=1e-12, atol=0.0):
-        from usdmotion.ops.edit.timewarp import resample
+        from usdmotion.ops.edit.timewarp import resample  # an fps change only
 
         motion = resample(motion, fps)
     if (mesh or body is not None) and body is None:
-        from usdmotion.skin import build_body
+        from usdmotion.skin import build_body  # a mesh only
 
         body = build_body(motion)
 

@@ -27,12 +27,14 @@ from pathlib import Path
 
 import numpy as np
 
-from usdmotion.errors import OutputError, UsdReadError
+from usdmotion.errors import OutputError, UsdMotionWarning, UsdReadError
 from usdmotion.io.atomic import atomic_output
-from usdmotion.usd_diagnostics import usd_error_message
+from usdmotion.io.usd_ar import ar_quick_look_problems, finish_stage
+from usdmotion.io.usd_read import read_usd_skeleton
+from usdmotion.io.usd_skin import add_skinned_meshes
 from usdmotion.kinematics import compose_transforms, rest_pose
 from usdmotion.motion import Motion
-from usdmotion.rotations import wxyz_to_xyzw
+from usdmotion.usd_diagnostics import usd_error_message
 
 USD_EXTENSIONS = (".usd", ".usda", ".usdc", ".usdz")
 CUSTOM_KEY = "usdmotion"
@@ -128,12 +130,13 @@ def define_skeleton(stage, motion: Motion, root_path: str):
     if motion.n_frames == 0:
         translations_attr.Set(Vt.Vec3fArray.FromNumpy(motion.offsets.astype(np.float32)))
         rotations_attr.Set(Vt.QuatfArray.FromNumpy(np.tile(np.float32([0, 0, 0, 1]), (motion.n_joints, 1))))
+    set_sample, vec3f, quatf = layer.SetTimeSample, Vt.Vec3fArray.FromNumpy, Vt.QuatfArray.FromNumpy
     with Sdf.ChangeBlock():
         for start in range(0, motion.n_frames, _CHUNK_FRAMES):  # float32 copies of one chunk at a time
             translations, rotations = _float32_samples(motion, start, start + _CHUNK_FRAMES)
-            for k in range(translations.shape[0]):  # one time sample per frame: the USD API's unit
-                layer.SetTimeSample(t_path, float(start + k), Vt.Vec3fArray.FromNumpy(translations[k]))
-                layer.SetTimeSample(r_path, float(start + k), Vt.QuatfArray.FromNumpy(rotations[k]))
+            for k, (t, r) in enumerate(zip(translations, rotations), start):  # one time sample per frame:
+                set_sample(t_path, float(k), vec3f(t))                          # the USD API's unit
+                set_sample(r_path, float(k), quatf(r))
     return skel
 
 
@@ -150,7 +153,10 @@ def _float32_samples(motion: Motion, start: int, stop: int) -> tuple[np.ndarray,
         translations = np.empty((stop - start, motion.n_joints, 3), np.float32)
         translations[:] = motion.offsets.astype(np.float32)
     translations[:, 0] = motion.root_translation[start:stop]
-    rotations = wxyz_to_xyzw(motion.rotations[start:stop]).astype(np.float32)
+    wxyz = motion.rotations[start:stop]
+    rotations = np.empty(wxyz.shape, np.float32)  # wxyz → xyzw and float32 in one pass (same values)
+    rotations[..., :3] = wxyz[..., 1:]
+    rotations[..., 3] = wxyz[..., 0]
     return translations, rotations
 
 
@@ -183,12 +189,9 @@ def write_usd(motion: Motion, path: str | os.PathLike, name: str | None = None,
             stage = Usd.Stage.CreateNew(str(layer_path))
             skel = define_skeleton(stage, motion, root_path)
             if motion.meshes:
-                from usdmotion.io.usd_skin import add_skinned_meshes
-
                 add_skinned_meshes(stage, skel, motion, path)
             if decorate is not None:
                 decorate(stage, skel)
-            from usdmotion.io.usd_ar import finish_stage
 
             finish_stage(stage, skel, motion)
             stage.GetRootLayer().Save()
@@ -218,9 +221,6 @@ def _check_float32(motion: Motion, path: Path) -> None:
 
 def _warn_unless_ar_ready(path: Path) -> None:
     import warnings
-
-    from usdmotion.errors import UsdMotionWarning
-    from usdmotion.io.usd_ar import ar_quick_look_problems
 
     problems = ar_quick_look_problems(path)
     if problems:
@@ -268,7 +268,5 @@ def read_usd(path: str | os.PathLike, skeleton: str | None = None, resample: boo
     when the stage has several; ``resample``: read unevenly spaced samples at even steps.
     Positions are in stage units. See :mod:`usdmotion.io.usd_read`.
     """
-    from usdmotion.io.usd_read import read_usd_skeleton
-
     path = Path(path)
     return read_usd_skeleton(_open_stage(path), path, skeleton=skeleton, resample=resample)

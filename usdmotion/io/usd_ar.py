@@ -4,9 +4,9 @@ Authored by :func:`finish_stage` (every USD output):
 
 * ``kind = "component"`` on the SkelRoot (the default prim), as DCC exporters do;
 * ``extent`` and ``extentsHint`` on the SkelRoot: the bounds of every joint over every
-  frame, grown by the farthest bind-pose mesh vertex from its main joint (a box that
-  holds the skinned meshes unless blending carries a vertex farther from its joint
-  than at bind time; the tests check it against usd-core's skinning);
+  frame (the rest pose for a motion without frames), grown by the farthest bind-pose
+  mesh vertex from its main joint (a box that holds the skinned meshes unless blending
+  carries a vertex farther from its joint than at bind time; the tests check it against usd-core's skinning);
 * a ``UsdPreviewSurface`` material bound to every mesh that has none (its display
   colour, else a neutral grey), so viewers do not show it flat white.
 
@@ -21,6 +21,8 @@ here: ``upAxis`` Y, prim types (``ARKitPrimTypeChecker``), shader ids
 from __future__ import annotations
 
 import numpy as np
+
+from usdmotion.kinematics import position_bounds, rest_pose
 
 VALIDATORS = (
     "usdUtilsValidators:FileExtensionValidator", "usdUtilsValidators:MissingReferenceValidator",
@@ -55,10 +57,11 @@ def finish_stage(stage, skeleton, motion) -> None:
 def _extent(stage, root, motion) -> None:
     from pxr import Gf, UsdGeom, UsdSkel, Vt
 
-    from usdmotion.kinematics import joint_positions
-
-    positions = joint_positions(motion).reshape(-1, 3)
-    lo, hi = positions.min(axis=0), positions.max(axis=0)
+    if motion.n_frames:
+        lo, hi = position_bounds(motion)
+    else:  # no time samples: the stage shows the rest pose (define_skeleton's defaults)
+        rest = rest_pose(motion)[1]
+        lo, hi = rest.min(axis=0), rest.max(axis=0)
     reach = 0.0
     for prim in root.GetChildren():
         if prim.IsA(UsdGeom.Mesh):
@@ -73,10 +76,15 @@ def _extent(stage, root, motion) -> None:
 
 
 def _materials(stage, root) -> None:
-    from pxr import Gf, Sdf, UsdGeom, UsdShade
+    from pxr import UsdGeom
 
-    for prim in root.GetChildren():
-        if not prim.IsA(UsdGeom.Mesh) or UsdShade.MaterialBindingAPI(prim).GetDirectBindingRel().GetTargets():
+    meshes = [prim for prim in root.GetChildren() if prim.IsA(UsdGeom.Mesh)]
+    if not meshes:
+        return
+    from pxr import Gf, Sdf, UsdShade  # only here: pxr.UsdShade imports Sdr (skeleton-only stages need neither)
+
+    for prim in meshes:
+        if UsdShade.MaterialBindingAPI(prim).GetDirectBindingRel().GetTargets():
             continue
         color = UsdGeom.Mesh(prim).GetDisplayColorPrimvar().Get() if UsdGeom.Mesh(prim).GetDisplayColorPrimvar() else None
         rgb = tuple(map(float, color[0])) if color else DEFAULT_COLOR

@@ -19,14 +19,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from usdmotion.io.usd import _usd_matrices
 from usdmotion.skin import INFLUENCES, Body
 
 
 def add_body_mesh(stage, skeleton, body: Body, name: str = "Body", color=(0.80, 0.62, 0.52)):
     """Author ``body`` as a skinned ``UsdGeom.Mesh`` beside ``skeleton``; returns the mesh."""
     from pxr import Gf, UsdGeom, UsdSkel, Vt
-
-    from usdmotion.io.usd import _usd_matrices
 
     root = skeleton.GetPrim().GetParent().GetPath()
     mesh = UsdGeom.Mesh.Define(stage, root.AppendChild(name))

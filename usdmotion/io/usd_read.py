@@ -38,7 +38,9 @@ from pathlib import Path
 import numpy as np
 
 from usdmotion.errors import UsdMotionWarning, UsdReadError
-from usdmotion.motion import Motion
+from usdmotion.io.usd_samples import animation_arrays, frame_times, stage_rate
+from usdmotion.io.usd_skin import read_skinned_meshes
+from usdmotion.motion import CHANNEL_NAMES, Motion
 from usdmotion.rotations import quat_conjugate, quat_mul, quat_rotate
 
 CUSTOM_KEY = "usdmotion"
@@ -194,8 +196,6 @@ def read_usd_skeleton(stage, path: Path, skeleton: str | None = None, resample: 
     in stage units (``meters_per_unit``, ``up_axis`` from the stage)."""
     from pxr import UsdGeom, UsdSkel
 
-    from usdmotion.io.usd_samples import animation_arrays, frame_times, stage_rate
-
     skel = choose_skeleton(stage, path, skeleton)
     where = skel.GetPath()
     query, parents, tokens = skeleton_topology(skel, path)
@@ -245,8 +245,6 @@ def read_usd_skeleton(stage, path: Path, skeleton: str | None = None, resample: 
 
 def _meshes(skel, query, tokens, names, order, offsets, times):
     """The skinned meshes bound to ``skel`` in the Motion's space (:mod:`usdmotion.io.usd_skin`)."""
-    from usdmotion.io.usd_skin import read_skinned_meshes
-
     by_token = dict(zip([tokens[i] for i in order] if order is not None else tokens, names))
     ancestor_row = skeleton_world(skel, times[:1])[0].T
     return read_skinned_meshes(skel, query, by_token, dict(zip(names, offsets)), ancestor_row)
@@ -270,8 +268,6 @@ def trusted_layout(custom: dict, parents: np.ndarray, path: Path, where) -> tupl
     """``(end_sites (J,), channels)`` from our customData, distrusted: end sites must be
     leaves, channels known BVH names without repeats and none on an end site; metadata
     that fails is ignored with a warning (defaults: no end sites, a default layout)."""
-    from usdmotion.motion import CHANNEL_NAMES
-
     n = parents.size
     end_sites = np.zeros(n, bool)
     try:

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from usdmotion.errors import UsdReadError
+from usdmotion.errors import UsdMotionWarning, UsdReadError
 
 SPACING_TOL = 1e-6   # relative: sample spacings this close to the median count as even
 UNIT_TOL = 1e-2      # |‖q‖ - 1| beyond this is a corrupt rotation, not float rounding
@@ -152,8 +152,6 @@ def animation_arrays(anim, tokens: list[str], times: np.ndarray, rest_rotations:
 
 def _check_scales(anim, times: np.ndarray, n: int, path: Path) -> None:
     import warnings
-
-    from usdmotion.errors import UsdMotionWarning
 
     attr = anim.GetScalesAttr()
     if not attr.HasValue():

@@ -21,6 +21,13 @@ from usdmotion.errors import UsdMotionError
 from usdmotion.kinematics import fk_arrays, local_translations
 from usdmotion.motion import Motion
 from usdmotion.progress import Progress
+from usdmotion.render.angles import parse_angle, sidecar_path, write_sidecar
+from usdmotion.render.camera import check_camera, is_usd_camera, preset_track, usd_camera_track
+from usdmotion.render.compare import align_takes
+from usdmotion.render.output import WriterThread, check_output, open_writer
+from usdmotion.render.panel import parse_panel, strip_height
+from usdmotion.render.scene import to_render_space
+from usdmotion.skin import body_size
 
 CHUNK = 32
 STYLES = ("body", "stick", "both")
@@ -46,6 +53,7 @@ class RenderOptions:
     compare_mode: str = "ghost"
     shadows: bool = False
     msaa: int = 0
+    fxaa: bool = True  # anti-aliasing post pass where there is no multisampling (msaa 0)
     quality: int = 20
     body_resolution: int = 96
     body: str = "auto"  # "stage": the input's own skinned meshes, "generated": usdmotion.skin.build_body, "auto": stage if any
@@ -134,7 +142,6 @@ def check_options(options: RenderOptions) -> None:
         raise UsdMotionError(f"--quality (H.264 CRF) must be in 0..51, got {options.quality}")
     if not 4 <= options.body_resolution <= 1024:
         raise UsdMotionError(f"body resolution must be in 4..1024, got {options.body_resolution}")
-    from usdmotion.render.camera import check_camera
 
     for name in camera_names(options):
         check_camera(name)
@@ -157,17 +164,13 @@ def camera_names(options: RenderOptions) -> list[str]:
 
 def render_joints(motion: Motion, frames: np.ndarray) -> np.ndarray:
     """Joint positions ``(N, J, 3)`` at ``frames`` in render space (see :mod:`usdmotion.render.space`)."""
-    from usdmotion.render.space import render_joints as joints
+    from usdmotion.render.space import render_joints as joints  # here: this function has its name
 
     return joints(motion, frames)
 
 
 def plan_render(motion: Motion, options: RenderOptions, other: Motion | None = None) -> RenderPlan:
     """Frames, times and camera of a render (no GL needed; tests project joints with it)."""
-    from usdmotion.render.camera import is_usd_camera, preset_track, usd_camera_track
-    from usdmotion.render.scene import to_render_space
-    from usdmotion.skin import body_size
-
     check_options(options)
     for name in options.traces:
         if name.lower() not in ("com", "centre_of_mass", "center_of_mass"):
@@ -178,8 +181,6 @@ def plan_render(motion: Motion, options: RenderOptions, other: Motion | None = N
     if other is None and options.align != "start":
         raise UsdMotionError("--align needs --compare OTHER")
     if options.angles:
-        from usdmotion.render.angles import parse_angle
-
         for text in options.angles:
             parse_angle(motion, text)
     frames, times, fps = output_frames(motion, options)
@@ -188,8 +189,6 @@ def plan_render(motion: Motion, options: RenderOptions, other: Motion | None = N
     pad = 0.08 * body_size(motion) * motion.meters_per_unit
     alignment = None
     if other is not None:
-        from usdmotion.render.compare import align_takes
-
         if other.n_frames == 0:
             raise UsdMotionError("no frames to render: the compared motion has no frames")
         alignment = align_takes(motion, other, frames, times, options.align, render_joints)
@@ -199,8 +198,6 @@ def plan_render(motion: Motion, options: RenderOptions, other: Motion | None = N
     side = other is not None and options.compare_mode == "side"
     strip = 0
     if options.panel:
-        from usdmotion.render.panel import parse_panel, strip_height
-
         strip = strip_height(options.height, len(parse_panel(options.panel)))
     rows, cols = parse_layout(options.layout)
     names = camera_names(options)
@@ -245,8 +242,6 @@ def render_motion(motion: Motion, output: str | Path, options: RenderOptions = R
     once per frame.
     Nothing is left at ``output`` if anything fails.
     """
-    from usdmotion.render.output import WriterThread, check_output, open_writer
-
     output = Path(output)
     check_output(output, options.width, options.height)
     plan = plan_render(motion, options, other)
@@ -265,7 +260,5 @@ def render_motion(motion: Motion, output: str | Path, options: RenderOptions = R
         writer.close(commit=committed)
     timings["encode"] = writer.busy
     if views.angles is not None:
-        from usdmotion.render.angles import sidecar_path, write_sidecar
-
         write_sidecar(sidecar_path(output), plan, views.angles)
     return RenderResult(len(plan.frames), time.perf_counter() - started, timings)

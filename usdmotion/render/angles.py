@@ -22,7 +22,9 @@ from pathlib import Path
 import numpy as np
 
 from usdmotion.errors import UsdMotionError
+from usdmotion.io.atomic import atomic_output
 from usdmotion.motion import Motion
+from usdmotion.render.output import is_video
 
 ROLE_WORDS = ("knee", "elbow", "hip", "shoulder", "ankle", "wrist")
 COLORS = ((255, 214, 10), (0, 200, 255), (120, 255, 120), (255, 120, 220))
@@ -183,15 +185,11 @@ class AngleOverlay:
 
 def sidecar_path(output: Path) -> Path:
     """``walk.mp4`` → ``walk.angles.json``; ``frames/####.png`` → ``frames/angles.json``."""
-    from usdmotion.render.output import is_video
-
     return output.with_suffix(".angles.json") if is_video(output) else output.parent / "angles.json"
 
 
 def write_sidecar(path: Path, plan, overlay: AngleOverlay) -> None:
     """The per-frame angle values and drawn texts as JSON, written atomically."""
-    from usdmotion.io.atomic import atomic_output
-
     frames = [{"index": i, "source_frame": int(plan.frames[i]), "time": round(float(plan.times[i]), 6),
                "angles": record} for i, record in enumerate(overlay.records)]
     data = {"unit": "deg", "definition": "bend: 0 = straight (usdmotion analyze's bend); trunk: from vertical",

@@ -17,6 +17,7 @@ import numpy as np
 from usdmotion.constants import MAX_ABS_VALUE
 from usdmotion.errors import InputError, UsdMotionError
 from usdmotion.resources import resource_path
+from usdmotion.usd_diagnostics import usd_diagnostics
 
 PRESETS_FILE = resource_path("render", "cameras.yaml")
 _USD_CAMERA = re.compile(r"^(?P<file>.+\.usd[acz]?)(?::(?P<prim>/.*))?$", re.IGNORECASE)
@@ -149,8 +150,6 @@ def usd_camera_track(spec: str, times: np.ndarray) -> CameraTrack:
             transform, field of view or clipping range is unusable (USD's own
             diagnostics become usdmotion warnings).
     """
-    from usdmotion.usd_diagnostics import usd_diagnostics
-
     match = _USD_CAMERA.match(spec)
     path, prim_path = Path(match["file"]), match["prim"]
     if not path.is_file():

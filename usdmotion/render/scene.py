@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from usdmotion.render.camera import UP, look_at
 from usdmotion.render.gl import DynamicMesh, import_pyrender
 from usdmotion.render.space import to_render_space  # noqa: F401  (re-exported: scene content is in render space)
 
@@ -106,9 +107,19 @@ class StickFigure:
 # ------------------------------------------------------------------ static parts
 
 
+#: Pieces each grid line is cut into, so its width can follow the distance to the camera.
+GRID_PIECES = 24
+
+
 def grid_mesh(lo: np.ndarray, hi: np.ndarray, height: float, spacing: float, line_width: float,
-              solid: bool = False):
-    """Grid lines every ``spacing`` metres over ``[lo, hi]`` (x, z), on a floor quad if ``solid``."""
+              solid: bool = False, eye: np.ndarray | None = None, pixel_angle: float = 0.0):
+    """Grid lines every ``spacing`` metres over ``[lo, hi]`` (x, z), on a floor quad if ``solid``.
+
+    Lines are ``line_width`` metres wide, or, seen from ``eye`` (metres, render space) with
+    ``pixel_angle`` radians a pixel, wide enough to cover 1.4 pixels where they lie: wider far
+    away and where the floor is seen at a grazing angle (up to 5×), so a far line across the
+    view is not dropped by the rasteriser (the FXAA pass then smooths its edges).
+    """
     pyrender = import_pyrender()
     import trimesh
 
@@ -116,13 +127,28 @@ def grid_mesh(lo: np.ndarray, hi: np.ndarray, height: float, spacing: float, lin
     z0, z1 = np.floor(lo[2] / spacing) * spacing, np.ceil(hi[2] / spacing) * spacing
     quad = np.array([[x0, height, z0], [x1, height, z0], [x1, height, z1], [x0, height, z1]])
     ground = trimesh.Trimesh(quad, [[0, 2, 1], [0, 3, 2]], process=False)
+    h = height + 1e-3 * max(spacing, 1.0)
+    t = np.linspace(0.0, 1.0, GRID_PIECES + 1)
     xs = np.arange(x0, x1 + spacing / 2, spacing)
     zs = np.arange(z0, z1 + spacing / 2, spacing)
-    h, w = height + 1e-3 * max(spacing, 1.0), line_width / 2
-    along_z = [[[x - w, h, z0], [x + w, h, z0], [x + w, h, z1], [x - w, h, z1]] for x in xs]
-    along_x = [[[x0, h, z - w], [x1, h, z - w], [x1, h, z + w], [x0, h, z + w]] for z in zs]
-    rects = np.asarray(along_z + along_x, dtype=np.float64)  # (L, 4, 3)
+    # centre lines (L, P+1, 3) and the floor direction across each line (L, 3)
+    along_z = np.stack(np.broadcast_arrays(xs[:, None], h, z0 + (z1 - z0) * t[None]), axis=-1)
+    along_x = np.stack(np.broadcast_arrays(x0 + (x1 - x0) * t[None], h, zs[:, None]), axis=-1)
+    centres = np.concatenate([along_z, along_x]).astype(np.float64)
+    across = np.concatenate([np.tile([1.0, 0.0, 0.0], (len(xs), 1)), np.tile([0.0, 0.0, 1.0], (len(zs), 1))])
+    width = np.full(centres.shape[:2], float(line_width))
+    if eye is not None and pixel_angle > 0:
+        ray = centres - np.asarray(eye, dtype=np.float64)
+        distance = np.linalg.norm(ray, axis=-1)
+        cosine = np.einsum("lpk,lk->lp", ray, across) / np.maximum(distance, 1e-9)
+        foreshortening = np.maximum(np.sqrt(np.clip(1.0 - cosine ** 2, 0.0, 1.0)), 0.2)
+        width = np.maximum(width, 1.4 * pixel_angle * distance / foreshortening)
+    offset = 0.5 * width[..., None] * across[:, None, :]
+    left, right = centres - offset, centres + offset  # (L, P+1, 3)
+    corners = np.stack([left[:, :-1], right[:, :-1], right[:, 1:], left[:, 1:]], axis=2)  # (L, P, 4, 3)
+    rects = corners.reshape(-1, 4, 3)
     faces = (np.array([[0, 2, 1], [0, 3, 2]])[None] + 4 * np.arange(len(rects))[:, None, None]).reshape(-1, 3)
+    faces = np.where(np.repeat(across[:, 0] > 0, GRID_PIECES * 2)[:, None], faces, faces[:, [0, 2, 1]])
     lines = trimesh.Trimesh(rects.reshape(-1, 3), faces, process=False)
     meshes = [pyrender.Mesh.from_trimesh(lines, material=material(COLORS["grid"]), smooth=False)]
     if solid:  # a shaded floor costs a lighting pass for half the image on a CPU rasteriser
@@ -163,7 +189,6 @@ def tube_mesh(path: np.ndarray, radius: float, color, max_points: int = 4000):
 def add_lights(scene, forward: np.ndarray, intensity: float = 3.0):
     """A key light from above the subject's front left (it casts the shadows)."""
     pyrender = import_pyrender()
-    from usdmotion.render.camera import UP, look_at
 
     left = np.cross(UP, forward)
     # one light: every light is a full lighting pass per pixel on a CPU rasteriser

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from usdmotion.render.gl import DynamicMesh
+from usdmotion.render.scene import material
 
 SEGMENTS = 40
 DARKNESS = 0.42  # alpha at the centre
@@ -33,8 +34,6 @@ class ContactShadow:
     """The shadow mesh; :meth:`update` places it for one frame's joints (render space)."""
 
     def __init__(self, radius: float, ground: float, rest_height: float):
-        from usdmotion.render.scene import material
-
         self.unit, faces, alpha = disc()
         self.radius, self.ground, self.rest_height = radius, ground + 0.002, rest_height
         colors = np.c_[np.zeros((len(alpha), 3)), alpha].astype(np.float32)

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from usdmotion.errors import OutputError, UsdMotionError
+from usdmotion.io.atomic import atomic_output
 from usdmotion.motion import Motion
 
 STILL_EXTENSIONS = (".png", ".jpg", ".jpeg")
@@ -67,7 +68,6 @@ def render_strobe(motion: Motion, output: str | Path, options, count: int | None
     """Render the stroboscope still of ``motion`` to ``output``; returns its source frames ``(N,)``."""
     import dataclasses
 
-    from usdmotion.io.atomic import atomic_output
     from usdmotion.render import output_frames, plan_render
 
     output = Path(output)
@@ -126,13 +126,14 @@ def _draw(motion: Motion, frames: np.ndarray, plan, options) -> np.ndarray:
         margin = max(2.0, 2 * options.grid_scale)
         lo, hi = joints.reshape(-1, 3).min(axis=0) - margin, joints.reshape(-1, 3).max(axis=0) + margin
         distance = float(np.linalg.norm(camera.poses[-1][:3, 3] - joints[:, 0].mean(axis=0)))
-        for mesh in grid_mesh(lo, hi, plan.ground, options.grid_scale, max(0.0025 * distance, 0.004)):
+        for mesh in grid_mesh(lo, hi, plan.ground, options.grid_scale, max(0.0025 * distance, 0.004),
+                              eye=camera.poses[-1][:3, 3], pixel_angle=2 * np.tan(camera.yfov / 2) / options.height):
             scene.add(mesh)
     travel = joints[-1, 0] - joints[0, 0]
     travel[1] = 0.0
     forward = travel / np.linalg.norm(travel) if np.linalg.norm(travel) > 1e-6 else np.array([0.0, 0.0, 1.0])
     add_lights(scene, forward)
-    renderer = offscreen_renderer(options.width, options.height, msaa=options.msaa)
+    renderer = offscreen_renderer(options.width, options.height, msaa=options.msaa, fxaa=options.fxaa)
     try:
         image = render_rgb(renderer, scene, options.shadows)
     finally:

@@ -119,7 +119,7 @@ class Views:
         self.shadow = self._contact_shadow() if options.contact_shadow else None
         self.strip = self._plot_strip(motion) if options.panel else None
         self.view_nodes = self._view_cameras(pyrender) if plan.cameras else []
-        self.renderer = offscreen_renderer(*plan.panel, msaa=options.msaa)
+        self.renderer = offscreen_renderer(*plan.panel, msaa=options.msaa, fxaa=options.fxaa)
 
     def _contact_shadow(self):
         """The :class:`~usdmotion.render.shadow.ContactShadow` under the main body (None: no body)."""
@@ -192,7 +192,9 @@ class Views:
             hi = joints.reshape(-1, 3).max(axis=0) + margin
             pixel = distance * 2 * np.tan(plan.camera.yfov / 2) / plan.panel[1]  # metres per pixel at the body
             static += grid_mesh(lo, hi, plan.ground, options.grid_scale, max(0.0025 * distance, 1.4 * pixel, 0.004),
-                              solid=options.shadows)  # a floor to receive the shadows
+                                solid=options.shadows,  # a floor to receive the shadows
+                                eye=np.median(plan.camera.poses[:, :3, 3], axis=0),
+                                pixel_angle=2 * np.tan(plan.camera.yfov / 2) / plan.panel[1])
         for k, name in enumerate(options.traces):
             path = self._trace_path(motion, name, joints)
             color = COLORS["traces"][k % len(COLORS["traces"])]

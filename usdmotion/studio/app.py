@@ -150,9 +150,9 @@ def create_app(roots: list[Path], options: dict | None = None, out: Path | None 
         return FileResponse(WEB / "index.html", headers={"Cache-Control": "no-cache"})
 
     routes = [Route("/", index), *api.routes(),
-              Mount("/app", StaticFiles(directory=WEB, check_dir=False), name="app"),
-              Mount("/vendor/three", StaticFiles(directory=NODE_MODULES / "three", check_dir=False), name="three"),
-              Mount("/vendor/uplot", StaticFiles(directory=NODE_MODULES / "uplot", check_dir=False), name="uplot")]
+              Mount("/app", _Static(directory=WEB, check_dir=False), name="app"),
+              Mount("/vendor/three", _Static(directory=NODE_MODULES / "three", check_dir=False), name="three"),
+              Mount("/vendor/uplot", _Static(directory=NODE_MODULES / "uplot", check_dir=False), name="uplot")]
     app = Starlette(routes=routes, exception_handlers={StudioError: _error_response})
     app.add_middleware(_Guard)
     app.state.api = api
@@ -180,6 +180,16 @@ def cached_glb(entry: Entry, options: dict, out: Path | None, make) -> bytes:
     except OSError:
         pass  # a read-only or full output folder only loses the cache
     return data
+
+
+class _Static(StaticFiles):
+    """Scripts and styles the browser keeps but checks again on every load (ETag → 304 Not
+    Modified): a reload reuses them (and the compiled code) yet never runs a stale app."""
+
+    def file_response(self, *args, **kwargs) -> Response:
+        response = super().file_response(*args, **kwargs)
+        response.headers["cache-control"] = "no-cache"
+        return response
 
 
 async def _error_response(request: Request, exc: StudioError) -> Response:

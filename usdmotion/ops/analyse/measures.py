@@ -46,7 +46,7 @@ from usdmotion.kinematics import depth_levels, rest_positions, world_rotations_p
 from usdmotion.motion import ROTATION_CHANNELS, Motion
 from usdmotion.ops.analyse.smoothing import FilterSpec, smooth_derivatives
 from usdmotion.rotations import check_euler_order, closest_equivalent_euler
-from usdmotion.skeleton_names import children_map, distal_joints, proximal_joint, rest_tolerance
+from usdmotion.skeleton_names import children_map, distal_joints, marked_joints, proximal_joint, rest_tolerance
 
 AXES = ("x", "y", "z")
 
@@ -236,17 +236,34 @@ def euler_angles(motion: Motion, order: str | None = None) -> tuple[np.ndarray, 
     return out, tuple(orders)
 
 
+def _body_distal(kids: dict, rest: np.ndarray, joint: int, eps: float, marked: dict[int, str]) -> list[int]:
+    """:func:`distal_joints` without marked bones, through twist segments in the chain
+    (Rigify's ``DEF-shin.L`` → ``DEF-shin.L.001`` → ``DEF-foot.L``)."""
+    out = []
+    for k in distal_joints(kids, rest, joint, eps):
+        if k not in marked:
+            out.append(k)
+        elif marked[k] == "twist":
+            out += _body_distal(kids, rest, k, eps, marked)
+    return out
+
+
 def bend_triples(motion: Motion) -> np.ndarray:
-    """``(K, 3)`` rows ``(joint, proximal, distal)`` for joints with a defined bend angle."""
+    """``(K, 3)`` rows ``(joint, proximal, distal)`` for joints with a defined bend angle.
+
+    The twist, root and helper bones that a recognised rig's profile marks are left out,
+    as joints and as distal candidates (a knee with calf-twist children still has a bend).
+    """
     rest = rest_positions(motion)
     eps = rest_tolerance(rest)
     kids = children_map(motion.parents)
+    marked = marked_joints(motion.joint_names)  # twist, root and helper bones of a recognised rig
     rows = []
     for j in range(motion.n_joints):  # topology only, O(J)
-        if motion.end_sites[j]:
+        if motion.end_sites[j] or j in marked:
             continue
         before = proximal_joint(motion.parents, rest, j, eps)
-        after = distal_joints(kids, rest, j, eps)
+        after = _body_distal(kids, rest, j, eps, marked)
         if before is not None and len(after) == 1:
             rows.append((j, before, after[0]))
     return np.asarray(rows, dtype=np.int64).reshape(-1, 3)

@@ -41,9 +41,9 @@ UP_INDEX = {"Y": 1, "Z": 2}
 class ContactThresholds:
     """Detector thresholds (heights in m above the joint's planted level, speeds in m/s, times in s).
 
-    Defaults were chosen on the CMU walks and runs (120 fps) and the Bandai walks (30 fps):
-    a planted ankle moves < 0.15 m/s and stays within 2 cm of its planted level; a
-    swinging foot passes 1 m/s.
+    Defaults were chosen on the CMU 12_01 walk (120 fps) and the Bandai walk and run (30 fps):
+    there a planted ankle's median speed is 0.03–0.09 m/s (95th percentile about 0.3 m/s),
+    a swinging foot passes 1 m/s; tighter speeds lose the 3–4-frame stances of the run.
     """
 
     height_enter: float = 0.03
@@ -189,29 +189,13 @@ def contact_joints(motion: Motion, source: str | None = None) -> tuple[tuple[str
     Raises:
         InputError: no ankles could be found (``source`` names the file).
     """
-    from usdmotion.kinematics import rest_positions
-    from usdmotion.skeleton_names import (SIDES, children_map, detect_profile, distal_joint, profile_joints,
-                                          rest_tolerance, rig_profiles)
+    from usdmotion.skeleton_names import SIDES, detect_profile, profile_joints, rig_profiles
 
     index = {n: j for j, n in enumerate(motion.joint_names)}
     profile = detect_profile(motion.joint_names)
     points = {} if profile is None else profile_joints(rig_profiles()[profile], motion.joint_names)
     if not all(f"{s[0]}_foot" in points for s in SIDES):
-        from usdmotion.ops.segment.roles import find_roles
-
-        try:
-            roles = find_roles(motion, source=source)
-        except InputError as exc:
-            raise InputError(source, f"cannot find the feet for contacts: {exc.message}") from None
-        rest = rest_positions(motion)
-        kids, eps = children_map(motion.parents), rest_tolerance(rest)
-        points = {}
-        for side in SIDES:
-            ankle = roles[f"{side}_ankle"]
-            points[f"{side[0]}_foot"] = motion.joint_names[ankle]
-            toe = distal_joint(kids, rest, ankle, eps)
-            if toe is not None:
-                points[f"{side[0]}_toe"] = motion.joint_names[toe]
+        points = _feet_from_roles(motion, source)
     parts, indices = [], []
     for side in SIDES:
         for part, point in CONTACT_POINTS:
@@ -220,6 +204,28 @@ def contact_joints(motion: Motion, source: str | None = None) -> tuple[tuple[str
                 parts.append(f"{side}_{part}")
                 indices.append(index[name])
     return tuple(parts), np.asarray(indices, np.int64)
+
+
+def _feet_from_roles(motion: Motion, source: str | None) -> dict[str, str]:
+    """``{"l_foot": ankle, "l_toe": next joint down, ...}`` from the segmentation roles."""
+    from usdmotion.kinematics import rest_positions
+    from usdmotion.ops.segment.roles import find_roles
+    from usdmotion.skeleton_names import SIDES, children_map, distal_joint, rest_tolerance
+
+    try:
+        roles = find_roles(motion, source=source)
+    except InputError as exc:
+        raise InputError(source, f"cannot find the feet for contacts: {exc.message}") from None
+    rest = rest_positions(motion)
+    kids, eps = children_map(motion.parents), rest_tolerance(rest)
+    points = {}
+    for side in SIDES:
+        ankle = roles[f"{side}_ankle"]
+        points[f"{side[0]}_foot"] = motion.joint_names[ankle]
+        toe = distal_joint(kids, rest, ankle, eps)
+        if toe is not None:
+            points[f"{side[0]}_toe"] = motion.joint_names[toe]
+    return points
 
 
 # ------------------------------------------------------------------------- detection
@@ -293,3 +299,48 @@ def detect_contacts(motion: Motion, *, floor: float | None = None, thresholds: C
     contact = detect_in_signals(heights, speeds, motion.fps, thresholds, floor, clearance)
     return FootContacts(tuple(motion.joint_names[i] for i in indices), indices, parts, contact, floor, clearance,
                         motion.up_axis, float(motion.fps), thresholds)
+
+
+def contacts_on_rig(contacts: FootContacts, motion: Motion, *, floor: float | None = None,
+                    clearance: str | np.ndarray = "rest", source: str | None = None) -> FootContacts:
+    """The same contact frames on another rig's heel/ankle/toe joints (e.g. a retargeting target),
+    matched by part (``left_ankle``...); parts the other rig lacks are dropped.
+
+    Args:
+        contacts: contacts of the source motion (same frames as ``motion``'s).
+        motion: the other rig (its animation is used only by ``clearance="motion"``).
+        floor: its floor height in metres (default: ``contacts.floor``).
+        clearance: planted clearances (m) of the kept parts: ``"rest"`` (default) from the
+            rig's rest pose, which must stand upright on flat feet: each contact joint's rest
+            height above the lowest of them, plus the source's smallest clearance;
+            ``"motion"``: estimated from ``motion``'s own animation like :func:`detect_contacts`
+            does (its percentile height above ``floor``; a result that floats throughout
+            then looks planted); or an array ``(C',)``.
+
+    Raises:
+        InputError: no part in common, or a wrong number of clearances.
+    """
+    from usdmotion.kinematics import rest_positions
+
+    parts, indices = contact_joints(motion, source)
+    where = {p: k for k, p in enumerate(parts)}
+    keep = [c for c, p in enumerate(contacts.parts) if p in where]
+    if not keep:
+        raise InputError(source, f"no contact joint in common (source {', '.join(contacts.parts)}; "
+                                 f"target {', '.join(parts)})")
+    target = np.array([indices[where[contacts.parts[c]]] for c in keep], np.int64)
+    floor = contacts.floor if floor is None else float(floor)
+    if isinstance(clearance, str) and clearance == "rest":
+        heights = rest_positions(motion)[target, UP_INDEX[motion.up_axis]] * motion.meters_per_unit
+        clearance = heights - heights.min() + float(contacts.clearance.min(initial=0.0))
+    elif isinstance(clearance, str) and clearance == "motion":
+        heights = joint_positions(motion)[:, target, UP_INDEX[motion.up_axis]] * motion.meters_per_unit
+        clearance = planted_clearance(heights, floor, (contacts.thresholds or ContactThresholds()).floor_percentile)
+    elif isinstance(clearance, str):
+        raise ValueError(f"clearance must be 'rest', 'motion' or an array, got {clearance!r}")
+    clearance = np.asarray(clearance, float)
+    if clearance.shape != (len(keep),):
+        raise InputError(source, f"{len(keep)} contact joints in common but {clearance.size} clearances given")
+    return FootContacts(tuple(motion.joint_names[i] for i in target), target, tuple(contacts.parts[c] for c in keep),
+                        contacts.contact[:, keep], floor, clearance,
+                        motion.up_axis, contacts.fps, contacts.thresholds)

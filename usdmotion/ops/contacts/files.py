@@ -5,10 +5,12 @@ from __future__ import annotations
 
 import json
 import os
+import re
 from pathlib import Path
 
 import numpy as np
 
+from usdmotion.constants import MAX_FRAMES
 from usdmotion.errors import InputError, OutputError
 from usdmotion.io.atomic import atomic_output
 from usdmotion.motion import Motion
@@ -32,6 +34,16 @@ def contact_summary(contacts: FootContacts) -> list[dict]:
     return rows
 
 
+def summary_table(contacts: FootContacts, file: str) -> str:
+    """The table ``usdmotion contacts`` prints: a header line, then joint, part, contacts,
+    total and mean contact time per contact joint."""
+    lines = [f"{file}: {contacts.n_frames} frames at {contacts.fps:g} fps, floor {contacts.floor:.3f} m "
+             f"({contacts.up}-up)", f"{'joint':<24} {'part':<12} {'contacts':>8} {'time s':>8} {'mean s':>8}"]
+    lines += [f"{r['name']:<24} {r['part']:<12} {r['contacts']:>8} {r['contact_time_s']:>8.3f} "
+              f"{r['mean_duration_s']:>8.3f}" for r in contact_summary(contacts)]
+    return "\n".join(lines)
+
+
 def contacts_document(contacts: FootContacts, file: str | None = None) -> dict:
     """The JSON document of ``contacts`` (valid against the ``contacts`` schema)."""
     joints = [{"name": r["name"], "part": r["part"], "clearance_m": float(contacts.clearance[c]),
@@ -47,7 +59,7 @@ def contacts_document(contacts: FootContacts, file: str | None = None) -> dict:
 
 def write_contacts_json(contacts: FootContacts, path: str | os.PathLike, file: str | None = None) -> None:
     """Write the contacts JSON atomically."""
-    text = json.dumps(contacts_document(contacts, file), indent=1)
+    text = re.sub(r"\[\s*(\d+),\s*(\d+)\s*\]", r"[\1, \2]", json.dumps(contacts_document(contacts, file), indent=1))
     with atomic_output(path) as tmp:
         Path(tmp).write_text(text + "\n", encoding="utf-8")
 
@@ -62,16 +74,18 @@ def read_contacts_json(path: str | os.PathLike, motion: Motion | None = None) ->
     from usdmotion.schemas import load_document
 
     doc = load_document(path, "contacts")
-    frames, joints = doc["frames"], doc["joints"]
+    frames, joints = int(doc["frames"]), doc["joints"]  # JSON Schema's integers include 480.0
     names = tuple(j["name"] for j in joints)
     if len(set(names)) != len(names):
         raise InputError(path, "/joints: a joint is listed twice")
     if motion is not None:
         _check_fits(path, doc, names, motion)
+    elif frames > MAX_FRAMES:
+        raise InputError(path, f"/frames: {frames} frames; at most {MAX_FRAMES} are supported")
     contact = np.zeros((frames, len(joints)), bool)
     for c, joint in enumerate(joints):
         last = 0
-        for k, (start, stop) in enumerate(joint["intervals"]):
+        for k, (start, stop) in enumerate((int(a), int(b)) for a, b in joint["intervals"]):
             if not last <= start < stop <= frames:
                 raise InputError(path, f"/joints/{c}/intervals/{k}: [{start}, {stop}] is not a sorted, "
                                        f"non-overlapping frame range within 0..{frames}")
@@ -81,7 +95,10 @@ def read_contacts_json(path: str | os.PathLike, motion: Motion | None = None) ->
         indices = np.array([motion.joint_names.index(n) for n in names], np.int64)
     else:
         indices = np.full(len(names), -1, np.int64)
-    thresholds = ContactThresholds(**doc["thresholds"]) if "thresholds" in doc else None
+    try:
+        thresholds = ContactThresholds(**doc["thresholds"]) if "thresholds" in doc else None
+    except ValueError as exc:
+        raise InputError(path, f"/thresholds: {exc}") from None
     return FootContacts(names, indices, tuple(j["part"] for j in joints), contact, float(doc["floor_m"]),
                         np.array([j["clearance_m"] for j in joints], float), doc["up_axis"], float(doc["fps"]),
                         thresholds)

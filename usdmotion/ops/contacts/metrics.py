@@ -13,6 +13,7 @@ its joint indices, floor and clearances with :func:`dataclasses.replace`).
 * **Floor penetration**: depth of a contact joint below its planted level
   (``floor + clearance``) in any frame, cm: the maximum, and the number of frames in
   which any contact joint is deeper than ``tolerance`` (default 1 mm).
+* **Below the floor** (:func:`below_floor`): any joint under the floor plane, cm.
 * **Floating**: contact frames in which the joint is more than ``float_height``
   (default 2 cm) above its planted level: their share of all contact frames.
 """
@@ -61,6 +62,13 @@ class FootMetrics:
     def as_dict(self) -> dict[str, float | int]:
         return {k: getattr(self, k) for k in self.__dataclass_fields__}
 
+    def describe(self) -> str:
+        """One line: ``foot skate 8.66 cm/s mean (max 49.6; 87 % of planted steps > 2 cm/s), ...``."""
+        return (f"foot skate {self.skate_mean_cm_s:.2f} cm/s mean (max {self.skate_max_cm_s:.1f}; "
+                f"{100 * self.skate_share:.0f} % of planted steps > {SLIDE_SPEED_CM_S:g} cm/s), "
+                f"penetration {self.penetration_max_cm:.2f} cm max ({self.penetration_frames} frames), "
+                f"floating {100 * self.floating_share:.0f} % of contact frames (> {FLOAT_HEIGHT_CM:g} cm)")
+
 
 def _contact_positions(positions: np.ndarray, contacts: FootContacts) -> np.ndarray:
     positions = np.asarray(positions, float)
@@ -102,6 +110,16 @@ def floor_penetration(positions: np.ndarray, contacts: FootContacts,
         return 0.0, 0
     depth = np.maximum(-above, 0.0)
     return float(depth.max()), int(np.count_nonzero((depth > tolerance).any(axis=1)))
+
+
+def below_floor(positions: np.ndarray, floor: float, up: str) -> tuple[float, int]:
+    """``(max depth cm >= 0, frames)`` of *any* joint below the floor plane itself (no clearance),
+    positions ``(F, J, 3)`` in metres: the "no joint under the floor" check of a whole body."""
+    h = np.asarray(positions, float)[..., UP_INDEX[up]] - floor
+    if h.size == 0:
+        return 0.0, 0
+    depth = np.maximum(-h.min(axis=1), 0.0) * 100.0
+    return float(depth.max()), int(np.count_nonzero(depth > PENETRATION_TOLERANCE_CM))
 
 
 def floating(positions: np.ndarray, contacts: FootContacts,

@@ -205,3 +205,39 @@ def _check_names(joint_map: JointMap, source_names, target_names) -> None:
         if source is not None and source not in source_names:
             raise JointMapError(joint_map.path, f"joints: {target!r} -> no source joint named {source!r}"
                                                 f"{_close(source, source_names)}")
+
+
+# -------------------------------------------------------------------------- unmapped
+
+def unmapped_reasons(source_names, target_names, pairs: dict[str, str | None],
+                     target_end_sites=None) -> dict[str, str]:
+    """Target joint → why no source joint drives it, for every target joint ``pairs`` leaves unmapped.
+
+    Reasons: ``"end site"``; a kind the target's rig profile marks (``"twist"``,
+    ``"floor root"``, ``"hips root"``, ``"helper"``: :func:`usdmotion.skeleton_names.joint_kinds`);
+    ``"no <point> in the source"`` for a body point of the target profile that the source
+    rig lacks; ``"not a body point"`` (fingers, face...) for other joints of a recognised
+    rig, and ``"no source joint of that name"`` where the target fits no profile.
+    """
+    from usdmotion.skeleton_names import joint_kinds
+
+    target_names = list(target_names)
+    ends = np.zeros(len(target_names), bool) if target_end_sites is None else np.asarray(target_end_sites, bool)
+    tp, sp = detect_profile(target_names), detect_profile(source_names)
+    profiles = rig_profiles()
+    kinds = joint_kinds(profiles[tp], target_names) if tp else {}
+    points = {v: k for k, v in (profile_joints(profiles[tp], target_names) or {}).items()} if tp else {}
+    source_points = set(profile_joints(profiles[sp], source_names) or {}) if sp else set()
+    out = {}
+    for name, end in zip(target_names, ends):
+        if pairs.get(name) is not None:
+            continue
+        if end:
+            out[name] = "end site"
+        elif name in kinds:
+            out[name] = kinds[name]
+        elif name in points:
+            out[name] = f"no {points[name]} in the source" if points[name] not in source_points else "not mapped"
+        else:
+            out[name] = "not a body point" if tp else "no source joint of that name"
+    return out

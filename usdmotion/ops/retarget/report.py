@@ -78,6 +78,7 @@ def build(source: Motion, setup, motion: Motion, q0: np.ndarray, init_name: str,
             "weights": {names[j]: float(setup.weights[j]) for j in mapped if setup.weights[j] != 1.0},
             "unmapped_target_joints": [n for j, n in enumerate(names) if j not in set(mapped.tolist())
                                        and not rig.end_sites[j]],
+            "unmapped_why": _unmapped_why(source, rig, names, mapped) if setup.mode == "target" else {},
             "unused_source_joints": [n for j, n in enumerate(source.joint_names) if j not in used
                                      and not source.end_sites[j]],
         },
@@ -93,3 +94,12 @@ def build(source: Motion, setup, motion: Motion, q0: np.ndarray, init_name: str,
         "time_s": dict(times),
         "frames_per_second_solve": float(source.n_frames / times["solve"]) if times["solve"] > 0 else None,
     }
+
+
+def _unmapped_why(source: Motion, rig: Motion, names, mapped) -> dict[str, str]:
+    """Unmapped target joint (End Sites left out) → why (``jointmap.unmapped_reasons``)."""
+    from usdmotion.ops.retarget.jointmap import unmapped_reasons
+
+    pairs = {names[j]: "mapped" for j in mapped}
+    why = unmapped_reasons(source.joint_names, names, pairs, rig.end_sites)
+    return {n: w for n, w in why.items() if w != "end site"}

@@ -19,6 +19,7 @@ from usdmotion.io.atomic import atomic_output
 from usdmotion.motion import Motion
 from usdmotion.ops.segment.roles import LIMB_BONES
 from usdmotion.ops.segment.detect import LOW_CONFIDENCE, Segmentation, clip
+from usdmotion.progress import Progress, no_progress
 
 CLIP_FORMATS = ("bvh", "usda", "usdc")
 
@@ -94,8 +95,11 @@ def clip_paths(seg: Segmentation, folder: Path, stem: str, fmt: str, indices: Se
 
 
 def export_clips(motion: Motion, seg: Segmentation, folder: str | os.PathLike, fmt: str = "bvh",
-                 stem: str = "clip", indices: Sequence[int] | None = None) -> list[Path]:
-    """Write one motion file per segment (or per segment in ``indices``); returns the paths."""
+                 stem: str = "clip", indices: Sequence[int] | None = None,
+                 progress: Progress = no_progress) -> list[Path]:
+    """Write one motion file per segment (or per segment in ``indices``); returns the paths.
+
+    ``progress(written, clips, message)`` after each clip."""
     if fmt not in CLIP_FORMATS:
         raise OutputError(f"unknown clip format {fmt!r} (use {', '.join(CLIP_FORMATS)})")
     folder = Path(folder)
@@ -106,6 +110,8 @@ def export_clips(motion: Motion, seg: Segmentation, folder: str | os.PathLike, f
     indices = range(len(seg.bounds())) if indices is None else indices
     paths = clip_paths(seg, folder, stem, fmt, indices)
     bounds = seg.bounds()
-    for i, path in zip(indices, paths):
+    for k, (i, path) in enumerate(zip(indices, paths)):
+        progress(k, len(paths), f"writing {path.name}")
         write_motion(clip(motion, int(bounds[i][0]), int(bounds[i][1])), path)
+    progress(len(paths), len(paths), f"wrote {len(paths)} clips")
     return paths

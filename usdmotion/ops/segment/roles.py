@@ -26,7 +26,7 @@ from collections.abc import Mapping
 
 from usdmotion.errors import InputError
 from usdmotion.motion import Motion
-from usdmotion.skeleton_names import (ROLE_POINTS, SIDES, common_ancestor, fitting_preset, longest_child,
+from usdmotion.skeleton_names import (ROLE_POINTS, SIDES, actual_names, common_ancestor, fitting_preset, longest_child,
                                       middle_joint_candidates, preset_named, preset_names, preset_names_attribute)
 from usdmotion.skeleton_names import parse_side  # noqa: F401 - its old import path
 
@@ -47,8 +47,9 @@ __getattr__ = preset_names_attribute("roles", __name__)
 
 
 def _preset_roles(motion: Motion, preset: str) -> dict[str, str]:
-    """Role → joint name in role preset ``preset`` (whether or not ``motion`` has them)."""
-    return preset_named("roles", preset).joints(ROLES, ROLE_POINTS)
+    """Role → joint name in role preset ``preset`` (whether or not ``motion`` has them; a joint
+    whose name differs only where USD paths cannot hold a character counts as the same)."""
+    return actual_names(preset_named("roles", preset).joints(ROLES, ROLE_POINTS), motion.joint_names)
 
 
 def match_preset(motion: Motion) -> str | None:

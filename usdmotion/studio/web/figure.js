@@ -2,8 +2,11 @@
 // body (GLB from the server, skinned on the GPU by three.js), a trace; all in one group so a
 // compare ghost can be moved by the spatial alignment.
 import * as THREE from 'three';
-import {GLTFLoader} from 'three/addons/loaders/GLTFLoader.js';
-import {clone as cloneSkinned} from 'three/addons/utils/SkeletonUtils.js';
+
+// The glTF loader is fetched when the first body is (the stick figure is drawn without it).
+let addons = null;
+const loadAddons = () => addons || (addons = Promise.all([import('three/addons/loaders/GLTFLoader.js'),
+                                                         import('three/addons/utils/SkeletonUtils.js')]));
 
 export class Figure {
   constructor(take, {color = 0x1f5fbf, opacity = 1} = {}) {
@@ -59,11 +62,15 @@ export class Figure {
     if (this.mixer) this.mixer.setTime(f / this.take.fps);
   }
 
-  /** Load the skinned body GLB; resolves false (stick figure only) where the server has none. */
-  async loadBody(url) {
+  /** Load the skinned body GLB (a URL, or a promise of its bytes); resolves false (stick figure
+   *  only) where the server has none. */
+  async loadBody(glb) {
     let gltf;
     try {
-      gltf = await new GLTFLoader().loadAsync(url);
+      const [{GLTFLoader}, {clone}] = await loadAddons();
+      this.cloneSkinned = clone;
+      gltf = await (typeof glb === 'string' ? new GLTFLoader().loadAsync(glb)
+                                            : new GLTFLoader().parseAsync(await glb, ''));
     } catch (e) {
       return false;
     }
@@ -113,10 +120,11 @@ export class Figure {
   snapshot(f, opacity) {
     const copy = new Figure(this.take, {color: this.color, opacity});
     copy.setFrame(f);
+    copy.stickGroup.visible = this.stickGroup.visible;  // as the player shows it (the body's clone keeps its own)
     const g = new THREE.Group();
     g.add(copy.stickGroup);
     if (this.body && this.clips && this.clips.length) {
-      const body = cloneSkinned(this.body);
+      const body = this.cloneSkinned(this.body);
       const mixer = new THREE.AnimationMixer(body);
       mixer.clipAction(this.clips[0]).play();
       mixer.setTime(f / this.take.fps);

@@ -1,6 +1,6 @@
 // Studio page: wires the library, the player, the plots and compare, and keeps every view
 // state in the URL (take, frame, range, camera, speed, compare, plots) so a link reopens it.
-import {getJSON, loadTake} from './api.js';
+import {getJSON, loadTake, takeGlb} from './api.js';
 import {LibraryView} from './library.js';
 import {Player} from './player.js';
 import {Plots} from './plots.js';
@@ -98,9 +98,11 @@ async function openTake(id, fresh) {
   player.setFrame(state.frame);
   takeShown();
   $('view-message').textContent = 'body: loading…';
-  await Promise.all([loadSeries(), take.comLoaded.then(applyTrace),
+  // the body first, then the plots (their analysis would slow the body's first build on the server)
+  const glb = takeGlb(id);
+  await Promise.all([glb.catch(() => null).then(loadSeries), state.comTrace && take.comLoaded.then(applyTrace),
                      state.compare ? openCompare() : Promise.resolve(), (async () => {
-    const ok = await figure.loadBody(`/api/glb?take=${encodeURIComponent(id)}`);
+    const ok = await figure.loadBody(glb);
     $('view-message').textContent = ok ? '' : 'no skinned body from this server: stick figure';
     applyToggles();
   })()]);
@@ -182,7 +184,7 @@ async function openCompare() {
     if (mine !== asked.compare) return;
     ghostTake = other;
     ghostMap = answer.map;
-    other.comLoaded.then(() => { if (player.ghost && player.ghost.take === other) applyTrace(); });
+    if (state.comTrace) other.comLoaded.then(() => { if (player.ghost && player.ghost.take === other) applyTrace(); });
     const ghost = player.setGhost(ghostTake, ghostMap);
     player.split = state.space === 'split';
     if (state.space === 'root' || state.space === 'split') player.placeGhost(answer.align);
@@ -271,9 +273,9 @@ function wire() {
 
 async function start() {
   wire();
-  await library.load();  // the list of takes, at once
-  const opening = state.take ? openTake(state.take, false) : null;
   player.warmUp();  // while the take's arrays are on their way
+  const opening = state.take ? openTake(state.take, false) : null;
+  await library.load();  // the list of takes, at once
   if (opening) await Promise.race([shown, opening]);  // a linked take is drawn before the library is read
   await library.fill();
   const options = library.readable().map(t => new Option(t.name, t.id));
