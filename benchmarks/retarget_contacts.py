@@ -160,7 +160,11 @@ def main(argv=None) -> int:
         row["load_1min"] = os.getloadavg()[0]
         row["goals"] = goals(row)
         rows.append(row)
-        print(f"{label}: {row['wall_s']:.0f} s, load {row['load_1min']:.1f}", flush=True)
+        c, pl = row["methods"]["contacts"], row["methods"]["plain"]
+        print(f"{label}: {row['wall_s']:.0f} s, load {row['load_1min']:.1f}; skate {pl['feet']['skate_mean_cm_s']:.2f}"
+              f" -> {c['feet']['skate_mean_cm_s']:.2f} cm/s, RMS {pl['rms_cm']:.2f} -> {c['rms_cm']:.2f} cm, "
+              f"flips {len(c['flips'])}", flush=True)
+        write_results("retarget_contacts", {"device": device_description(), "rows": rows, "partial": True})
     table = []
     for row in rows:
         for method, q in row["methods"].items():
