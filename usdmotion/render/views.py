@@ -6,16 +6,21 @@ import time
 
 import numpy as np
 
+from usdmotion.body_parts import NO_BODY, body_groups
 from usdmotion.errors import UsdMotionError
 from usdmotion.kinematics import fk_arrays, local_translations
 from usdmotion.motion import Motion
-from usdmotion.render.gl import DynamicMesh, import_pyrender, offscreen_renderer, render_rgb
+from usdmotion.render.angles import AngleOverlay, angle_values, parse_angle
+from usdmotion.render.camera import forward_direction, project_frames
 from usdmotion.render.compare import clock_text
+from usdmotion.render.gl import DynamicMesh, import_pyrender, offscreen_renderer, render_rgb
 from usdmotion.render.overlay import draw_text
+from usdmotion.render.panel import PlotStrip, panel_series, parse_panel, strip_height
+from usdmotion.render.shadow import ContactShadow
+from usdmotion.skin import body_size, build_body, centre_of_mass, lbs, skinning_matrices
+from usdmotion.skin_stage import stage_body
 from usdmotion.render.scene import (COLORS, StickFigure, add_lights, grid_mesh, material, to_render_space,
                                     tube_mesh)
-from usdmotion.body_parts import NO_BODY, body_groups
-from usdmotion.skin import body_size, build_body, centre_of_mass, lbs, skinning_matrices
 
 _UP_Z = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 
@@ -26,8 +31,6 @@ def choose_body(motion: Motion, which: str, resolution: int):
     if which not in ("auto", "stage", "generated"):
         raise UsdMotionError(f"--body must be auto, stage or generated, got {which!r}")
     if which != "generated" and motion.meshes:
-        from usdmotion.skin_stage import stage_body
-
         body = stage_body(motion)
         if body is not None:
             return body
@@ -114,6 +117,7 @@ class Views:
             for mesh in actor.nodes:
                 scenes[i if self.side else 0].add(mesh)
         self.scenes = scenes
+        self.view_grids = []  # the grid lines seen by each view (--layout)
         self._add_static(motion, other)
         self.angles = self._angles(motion) if options.angles else None
         self.shadow = self._contact_shadow() if options.contact_shadow else None
@@ -123,8 +127,6 @@ class Views:
 
     def _contact_shadow(self):
         """The :class:`~usdmotion.render.shadow.ContactShadow` under the main body (None: no body)."""
-        from usdmotion.render.shadow import ContactShadow
-
         main = self.actors[0]
         if main.body is None:
             return None
@@ -135,8 +137,6 @@ class Views:
 
     def _plot_strip(self, motion: Motion):
         """The ``--panel`` :class:`~usdmotion.render.panel.PlotStrip`: curves at every source frame."""
-        from usdmotion.render.panel import PlotStrip, panel_series, parse_panel, strip_height
-
         plan, options = self.plan, self.options
         items = parse_panel(options.panel)
         every = np.arange(plan.frames.min(), plan.frames.max() + 1)
@@ -154,9 +154,6 @@ class Views:
 
     def _angles(self, motion: Motion):
         """The :class:`~usdmotion.render.angles.AngleOverlay` of ``--angle`` on the main view."""
-        from usdmotion.render.angles import AngleOverlay, angle_values, parse_angle
-        from usdmotion.render.camera import project_frames
-
         plan = self.plan
         specs = [parse_angle(motion, text) for text in self.options.angles]
         joints = to_render_space(fk_arrays(motion.rotations[plan.frames], self.actors[0].local_t[plan.frames],
@@ -175,8 +172,6 @@ class Views:
         return scene
 
     def _add_static(self, motion: Motion, other: Motion | None) -> None:
-        from usdmotion.render.camera import forward_direction
-
         plan, options = self.plan, self.options
         main = self.actors[0]
         main.prepare(np.arange(min(len(plan.frames), 1)))
@@ -191,10 +186,15 @@ class Views:
             lo = joints.reshape(-1, 3).min(axis=0) - margin
             hi = joints.reshape(-1, 3).max(axis=0) + margin
             pixel = distance * 2 * np.tan(plan.camera.yfov / 2) / plan.panel[1]  # metres per pixel at the body
-            static += grid_mesh(lo, hi, plan.ground, options.grid_scale, max(0.0025 * distance, 1.4 * pixel, 0.004),
-                                solid=options.shadows,  # a floor to receive the shadows
-                                eye=np.median(plan.camera.poses[:, :3, 3], axis=0),
-                                pixel_angle=2 * np.tan(plan.camera.yfov / 2) / plan.panel[1])
+            # the lines' widths follow the distance from the camera: one grid per view of a layout
+            for k, camera in enumerate(plan.cameras or (plan.camera,)):
+                meshes = grid_mesh(lo, hi, plan.ground, options.grid_scale,
+                                   max(0.0025 * distance, 1.4 * pixel, 0.004),
+                                   solid=options.shadows and k == 0,  # a floor to receive the shadows
+                                   eye=np.median(camera.poses[:, :3, 3], axis=0),
+                                   pixel_angle=2 * np.tan(camera.yfov / 2) / plan.panel[1])
+                self.view_grids.append(meshes[-1])
+                static += meshes
         for k, name in enumerate(options.traces):
             path = self._trace_path(motion, name, joints)
             color = COLORS["traces"][k % len(COLORS["traces"])]
@@ -236,7 +236,9 @@ class Views:
                 images = []
                 if self.view_nodes:
                     scene = self.scenes[0]
-                    for node, cam in zip(self.view_nodes, plan.cameras):
+                    for view, (node, cam) in enumerate(zip(self.view_nodes, plan.cameras)):
+                        for k, grid in enumerate(self.view_grids):
+                            grid.is_visible = k == view
                         scene.main_camera_node = node
                         scene.set_pose(node, cam.poses[i])
                         images.append(render_rgb(self.renderer, scene, options.shadows))
