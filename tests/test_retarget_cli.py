@@ -101,6 +101,18 @@ def test_cross_rig_to_usd_positions_evaluated_by_usd_core(capsys, tmp_path, walk
         err_ = world[:, names.index(target_name)] - p_src[:, source.joint_index(source_name)]
         rms = np.sqrt(np.mean(np.sum(err_**2, -1)))
         assert rms == pytest.approx(rep["per_joint_rms"][target_name], rel=1e-4, abs=1e-4)  # float32 in USD
+    # contacts are on by default with --target: the feet, the flips and the comparison are reported
+    assert "feet: skate" in stdout and set(rep["compare"]) == {"rotation_copy", "plain", "result"}
+    assert rep["contacts"]["joints"] and rep["quality"]["feet"]["contact_frames"] > 0
+    assert rep["compare"]["result"]["rms_cm"] == pytest.approx(rep["quality"]["rms_cm"])
+    # the same contacts from a file (usdmotion contacts --json) give the same result
+    contacts = tmp_path / "contacts.json"
+    assert run(capsys, "contacts", walk16, "--units", "asf", "--json", contacts)[0] == 0
+    again = tmp_path / "again.json"
+    code, _, err = run(capsys, "retarget", walk16, tmp_path / "again.usda", "--target", shared_file(DAZ), "--units",
+                       "asf", "--contacts", contacts, "--no-compare", "--report", again)
+    assert code == 0, err
+    assert json.loads(again.read_text())["per_joint_rms"] == pytest.approx(rep["per_joint_rms"], rel=1e-9)
     # and the BVH written from the same run's motion agrees with usd-core
     bvh = tmp_path / "daz.bvh"
     assert run(capsys, "retarget", walk16, bvh, "--target", shared_file(DAZ), "--units", "asf")[0] == 0
@@ -150,6 +162,8 @@ def write_map(tmp_path, doc, name="map.json"):
     (["--target", "DAZ", "--units", "asf", "--directions", "mean"], "--directions mean needs a target derived"),
     (["--target", "DAZ", "--units", "asf", "--map", "MAP:{\"joints\": {\"hip\": null}}"], "could be matched"),
     (["--target", "CYCLE"], "cyc.usda"),
+    (["--target", "DAZ", "--units", "asf", "--contacts", "NOFILE"], "nope.json"),
+    (["--target", "DAZ", "--units", "asf", "--contacts", "auto", "--method", "adam"], "needs --method lm"),
 ])
 def test_bad_input_is_one_line_exit_2_and_writes_nothing(capsys, tmp_path, walk16, shared_file, args, message):
     expanded = []
@@ -160,6 +174,8 @@ def test_bad_input_is_one_line_exit_2_and_writes_nothing(capsys, tmp_path, walk1
             a = str(shared_file(DAZ))
         elif a == "CYCLE":
             a = str(cyclic_usd(tmp_path))
+        elif a == "NOFILE":
+            a = str(tmp_path / "nope.json")
         expanded.append(a)
     out = tmp_path / "out.bvh"
     code, stdout, err = run(capsys, "retarget", walk16, out, *expanded, "--report", tmp_path / "r.json")

@@ -29,6 +29,11 @@ class Directions(str, Enum):
     rest = "rest"
 
 
+class RootScale(str, Enum):
+    off = "off"
+    legs = "legs"
+
+
 class Init(str, Enum):
     auto = "auto"
     copy = "copy"
@@ -71,6 +76,14 @@ def retarget(
     = Init.auto,
     local: Annotated[bool, typer.Option(help="Optimise only joints around changed bones (derived rigs).")] = False,
     report: Annotated[Path | None, typer.Option(help="Write the JSON report here.", show_default=False)] = None,
+    contacts: Annotated[str | None, typer.Option(
+        help="Foot contacts for the contact-aware solve: 'auto' (detected in the source; the default with "
+             "--target), 'off' (the default for --remove/--add) or a contacts JSON (usdmotion contacts --json).",
+        show_default=False)] = None,
+    root_scale: Annotated[RootScale, typer.Option(help="Scale the root trajectory by the target/source leg-length "
+                                                       "ratio (with contacts).")] = RootScale.off,
+    compare: Annotated[bool, typer.Option(help="With contacts, also solve without them and add the plain solve's "
+                                               "and rotation copying's figures to the report.")] = True,
     target_units: Annotated[str | None, typer.Option(help="Length unit of a BVH target (default cm).",
                                                      show_default=False)] = None,
     target_up_axis: Annotated[UpAxisChoice | None, typer.Option(help="Vertical axis of a BVH target (default Y).",
@@ -87,7 +100,8 @@ def retarget(
     with progress("retargeting", total=motion.n_frames, unit="frames") as update:
         line = retarget_files(motion, source, output, target_motion, target, _names(remove), add or [], map_file,
                               method.value, iterations, lengths.value, directions.value, scale, init.value, local,
-                              report, update)
+                              report, update, contacts=contacts, root_scale=root_scale.value,
+                              compare=compare and report is not None)
     typer.echo(line)
 
 

@@ -36,15 +36,19 @@ def retarget_files(source: Motion, source_path: Path, output: Path, target: Moti
                    target_path: Path | None = None, remove=(), add=(), map_path: Path | None = None,
                    method: str = "lm", iterations: int | None = None, lengths: str = "source",
                    directions: str = "auto", scale="units", init: str = "auto", local: bool = False,
-                   report_path: Path | None = None, progress: Progress | None = None) -> str:
+                   report_path: Path | None = None, progress: Progress | None = None, contacts: str | None = None,
+                   root_scale: str = "off", compare: bool = False) -> str:
     """Retarget, write ``output`` (BVH or USD by extension) and the JSON report; return a summary line.
 
-    Nothing is written when anything fails (checks run before the optimiser).
+    ``contacts``: ``"auto"``, ``"off"`` or a contacts JSON path (default: ``"auto"`` with a
+    target skeleton, ``"off"`` for rigs derived with remove/add). Nothing is written when
+    anything fails (checks run before the optimiser).
     """
     output = Path(output)
     if output.suffix.lower() not in BVH_EXTENSIONS + USD_EXTENSIONS:
         raise OutputError(f"{output}: unknown output format {output.suffix!r} (use .bvh, {', '.join(USD_EXTENSIONS)})")
     inputs = [Path(source_path)] + ([Path(target_path)] if target_path else []) + ([Path(map_path)] if map_path else [])
+    inputs += [Path(contacts)] if contacts not in (None, "off", "auto") else []
     for path in [output] + ([Path(report_path)] if report_path else []):
         if any(path.resolve() == p.resolve() for p in inputs):
             raise OutputError(f"{path}: output would overwrite an input")
@@ -53,17 +57,42 @@ def retarget_files(source: Motion, source_path: Path, output: Path, target: Moti
     if target is None and not remove and not add:
         raise RetargetError("give --target, or joints to --remove / --add")
     joint_map = load_joint_map(map_path) if map_path else None
+    foot_contacts = _contacts(contacts, source, target is not None, method)
     specs = [parse_add(spec) for spec in add]
     result = retarget(source, target, remove=remove, add=specs, joint_map=joint_map, method=method,
                       iterations=iterations, lengths=lengths, directions=directions, scale=parse_scale(scale),
                       init=init, local=local, source_path=str(source_path),
-                      target_path=None if target_path is None else str(target_path), progress=progress)
+                      target_path=None if target_path is None else str(target_path), progress=progress,
+                      contacts=foot_contacts, root_scale=root_scale, compare=compare and foot_contacts is not None)
     write_motion(result.motion, output)
     rep = result.report
     if report_path:
         with atomic_output(Path(report_path)) as tmp:
             tmp.write_text(json.dumps(rep, indent=2) + "\n", encoding="utf-8")
     return summary_line(result.motion, rep, output)
+
+
+def _contacts(option: str | None, source: Motion, has_target: bool, method: str):
+    """``None`` (off), ``"auto"`` or :class:`~usdmotion.ops.contacts.FootContacts` read from a JSON file."""
+    if option is None:  # the default: contacts where the source's feet can be found
+        if not (has_target and method == "lm"):
+            return None
+        import warnings
+
+        from usdmotion.errors import InputError, UsdMotionWarning
+        from usdmotion.ops.contacts import detect_contacts
+
+        try:
+            return detect_contacts(source)
+        except InputError as exc:
+            warnings.warn(f"no foot contacts ({exc.message}): solving without them (--contacts off)",
+                          UsdMotionWarning, stacklevel=2)
+            return None
+    if option in ("off", "auto"):
+        return None if option == "off" else option
+    from usdmotion.ops.contacts.files import read_contacts_json
+
+    return read_contacts_json(option, source)
 
 
 def summary_line(motion: Motion, rep: dict, output: Path) -> str:
@@ -76,4 +105,18 @@ def summary_line(motion: Motion, rep: dict, output: Path) -> str:
             f"loss {loss['initial']['total']:.6g} -> {loss['final']['total']:.6g}{ratio}; per-joint RMS "
             f"{loss['final']['rms']:.4g} (worst {worst[0]} {worst[1]:.4g}) units; {rep['method']} on "
             f"{rep['device']}, {rep['time_s']['solve']:.2f} s ({rep['frames_per_second_solve']:.0f} frames/s) + "
-            f"{rep['time_s']['compile']:.1f} s compiling")
+            f"{rep['time_s']['compile']:.1f} s compiling{_feet(rep)}")
+
+
+def _feet(rep: dict) -> str:
+    """``; feet: skate X cm/s (plain Y) ...`` when the solve used contacts."""
+    feet = rep.get("quality", {}).get("feet")
+    if feet is None:
+        return ""
+    plain = rep.get("compare", {}).get("plain", {}).get("feet")
+    versus = f" (plain solve {plain['skate_mean_cm_s']:.2f})" if plain else ""
+    flips = rep["quality"]["flips"]
+    return (f"; feet: skate {feet['skate_mean_cm_s']:.2f} cm/s{versus}, {100 * feet['skate_share']:.0f} % of "
+            f"contact steps sliding, penetration {feet['penetration_max_cm']:.2f} cm, floating "
+            f"{100 * feet['floating_share']:.0f} %; rotation steps above limit: "
+            f"{', '.join(flips) if flips else 'none'}")

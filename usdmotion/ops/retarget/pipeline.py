@@ -24,6 +24,7 @@ The loss compares, per frame, the world positions of the mapped target joints wi
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
 
@@ -34,15 +35,25 @@ from usdmotion.kinematics import fk_arrays, world_rotations_positions
 from usdmotion.motion import POSITION_CHANNELS, Motion
 from usdmotion.ops.retarget.hierarchy import (Rig, RetargetError, UnitsMismatchError, adapt_offsets, ancestor_matrix,
                                      derive_rig, mapped_chains, rig_from_motion, source_bone_lengths)
+from usdmotion.ops.retarget import quality as retarget_quality
 from usdmotion.ops.retarget import report as retarget_report
+from usdmotion.ops.retarget.contact_terms import FLOOR_WEIGHT, ROOT_SCALES, contact_terms, moved_joints
 from usdmotion.ops.retarget.jointmap import JointMap, resolve_map
 from usdmotion.ops.retarget.losses import frame_losses
 from usdmotion.ops.retarget.problem import Problem
+from usdmotion.ops.retarget.aim import aim_init, identity_quats as _identity
+from usdmotion.ops.retarget.rotation_terms import smooth_scale
 from usdmotion.ops.retarget.solve import solve
+from usdmotion.ops.retarget.unmapped import continuous_hemisphere, unmapped_rules
 from usdmotion.progress import Progress
-from usdmotion.rotations import matrix_to_quat, quat_between, quat_conjugate, quat_mul, quat_rotate
+from usdmotion.rotations import quat_conjugate, quat_mul, quat_rotate
 
 METHODS = ("lm", "adam")
+#: Default weight (rigs from files) of the pull of every optimised joint's world rotation
+#: towards the continuous initial guess: a radian weighs this share of the squared
+#: distances the joint moves (see :func:`smooth_scale`); small enough to leave what the
+#: positions determine alone (RMS +0.x %), large enough to hold what they barely determine.
+PRIOR = 0.01
 #: Sizes (target / source, after unit conversion) outside this range mean the units disagree.
 SIZE_RATIO_RANGE = (0.5, 2.0)
 
@@ -78,12 +89,6 @@ class Setup:
     @property
     def mapped(self) -> np.ndarray:
         return np.flatnonzero((self.source_of >= 0) & (self.weights > 0))
-
-
-def _identity(shape) -> np.ndarray:
-    q = np.zeros(tuple(shape) + (4,))
-    q[..., 0] = 1.0
-    return q
 
 
 def _up_rotation(source_up: str, target_up: str) -> np.ndarray | None:
@@ -293,73 +298,8 @@ def _initial_guesses(source: Motion, setup: Setup, up) -> dict:
         if up is not None:
             copied[:, setup.anchor] = quat_mul(up, copied[:, setup.anchor])
         inits["copy"] = copied
-    inits["aim"] = aim_init(setup)
+    inits["aim"] = aim_init(setup, copied)
     return inits
-
-
-def _rays(rig: Rig, offsets: np.ndarray, mapped_mask: np.ndarray) -> list[list[tuple[int, np.ndarray]]]:
-    """Per joint: ``(d, rest vector from the joint to d)`` for its nearest mapped descendants."""
-    children = [[] for _ in range(rig.n_joints)]
-    for j in range(1, rig.n_joints):
-        children[rig.parents[j]].append(j)
-    rays = []
-    for j in range(rig.n_joints):
-        found, stack = [], [(c, offsets[c]) for c in children[j]]
-        while stack:
-            c, v = stack.pop()
-            if mapped_mask[c]:
-                if np.linalg.norm(v) > 1e-9:
-                    found.append((c, v))
-            else:
-                stack.extend((g, v + offsets[g]) for g in children[c])
-        rays.append(found)
-    return rays
-
-
-def aim_init(setup: Setup) -> np.ndarray:
-    """Heuristic rotations ``(F, J, 4)``: every optimised joint aims its rest bone(s) at the
-    source direction(s) of its nearest mapped descendants (one: shortest swing from the
-    parent's frame; several: least-squares rotation, Kabsch), joint by joint from the root,
-    all frames at once."""
-    rig, offsets = setup.rig, setup.offsets
-    n_frames = setup.targets.shape[0]
-    mapped_mask = np.zeros(rig.n_joints, bool)
-    mapped_mask[setup.mapped] = True
-    rays = _rays(rig, offsets, mapped_mask)
-    optimised = np.zeros(rig.n_joints, bool)
-    optimised[setup.rot_joints] = True
-    local = _identity((n_frames, rig.n_joints))
-    world_q = _identity((n_frames, rig.n_joints))
-    world_p = np.zeros((n_frames, rig.n_joints, 3))
-    for j in range(rig.n_joints):
-        p = rig.parents[j]
-        parent_q = world_q[:, p] if p >= 0 else _identity((n_frames,))
-        parent_p = world_p[:, p] if p >= 0 else np.zeros((n_frames, 3))
-        world_p[:, j] = parent_p + quat_rotate(parent_q, setup.translations[:, j])
-        if optimised[j] and rays[j]:
-            local[:, j] = quat_mul(quat_conjugate(parent_q), _aim(parent_q, world_p[:, j], rays[j], setup.targets))
-        world_q[:, j] = quat_mul(parent_q, local[:, j])
-    return local
-
-
-def _aim(parent_q, origin, rays, targets) -> np.ndarray:
-    """World rotation ``(F, 4)`` aiming rest vectors (joint frame) at target directions."""
-
-
-    u = np.stack([v for _, v in rays])  # (R, 3) joint frame
-    v = np.stack([targets[:, d] - origin for d, _ in rays], axis=1)  # (F, R, 3) world
-    carried = quat_rotate(parent_q[:, None], u[None])  # rest vectors in the world, local rotation = identity
-    swing = quat_mul(quat_between(carried.sum(axis=1), v.sum(axis=1)), parent_q)
-    if len(rays) < 2:
-        return swing
-    h = np.einsum("frk,rl->fkl", v, u)  # Σ v uᵀ
-    w_, s, vt = np.linalg.svd(h)
-    d = np.sign(np.linalg.det(w_ @ vt))
-    fix = np.ones((len(d), 3))
-    fix[:, 2] = d
-    kabsch = matrix_to_quat(w_ @ (fix[:, :, None] * vt))
-    planar = s[:, 1] > 1e-6 * np.maximum(s[:, 0], 1e-300)
-    return np.where(planar[:, None], kabsch, swing)
 
 
 # ------------------------------------------------------------------------ retarget
@@ -378,18 +318,29 @@ def _choose_init(setup: Setup, init: str, method: str) -> str:
     return min(losses, key=losses.get)  # one choice for the whole take keeps twists continuous
 
 
-def _problem(setup: Setup):
+def _problem(setup: Setup, terms=None, smooth: float = 0.0, prior: float = 0.0):
     channels = setup.rig.channels
     orders = tuple(rotation_order(channels[j]) if channels is not None and channels[j] else "ZXY"
                    for j in setup.rot_joints)
     mapped = setup.mapped
-    return Problem(setup.rig.parents, mapped, setup.weights[mapped], setup.rot_joints, setup.trans_joints, orders)
+    extra = {}
+    if smooth > 0:
+        extra["smooth"] = smooth * smooth_scale(setup)
+    if prior > 0:
+        extra["prior"] = prior * smooth_scale(setup)
+    if terms is not None:
+        extra.update(contact_joints=terms.joints, floor_joints=moved_joints(setup), up=terms.up,
+                     floor_weight=FLOOR_WEIGHT)
+    return Problem(setup.rig.parents, mapped, setup.weights[mapped], setup.rot_joints, setup.trans_joints, orders,
+                   **extra)
 
 
 def retarget(source: Motion, target: Motion | None = None, *, remove=(), add=(), joint_map: JointMap | None = None,
              method: str = "lm", iterations: int | None = None, lengths: str = "source", directions: str = "auto",
              scale="units", init: str = "auto", local: bool = False, source_path: str | None = None,
-             target_path: str | None = None, progress: Progress | None = None) -> RetargetResult:
+             target_path: str | None = None, progress: Progress | None = None, contacts=None,
+             root_scale: str = "off", prior: float | None = None, smooth: float = 0.0,
+             compare: bool = False) -> RetargetResult:
     """Retarget ``source`` onto ``target`` (a skeleton; its animation is ignored) or onto
     the source's own skeleton with joints removed/added.
 
@@ -411,6 +362,17 @@ def retarget(source: Motion, target: Motion | None = None, *, remove=(), add=(),
         source_path, target_path: file names for messages and the report.
         progress: optional :class:`usdmotion.progress.Progress` ``(frames done, n_frames, message)``,
             called after every chunk.
+        contacts: ``None`` (off), ``"auto"`` (:func:`usdmotion.ops.contacts.detect_contacts`
+            on the source) or the source's :class:`~usdmotion.ops.contacts.FootContacts`: the
+            contact-aware solve (:mod:`usdmotion.ops.retarget.contact_terms`; needs ``lm``).
+        root_scale: ``"off"`` or ``"legs"``: scale the root trajectory by the leg-length ratio.
+        prior: weight of the pull towards the initial guess (default :data:`PRIOR` for rigs
+            from files, 0 for derived rigs, whose composed initial guess is already exact).
+        smooth: weight of the temporal term (second difference of world rotations over
+            neighbouring frames, solved as a Jacobi sweep inside the batched solve;
+            default 0: it slowed convergence and did not remove flips in our tests).
+        compare: add the plain solve's and rotation copying's metrics to the report
+            (``report["compare"]``; the plain solve runs a second time).
 
     Returns:
         :class:`RetargetResult` with the new motion (target skeleton, channel layout,
@@ -427,28 +389,96 @@ def retarget(source: Motion, target: Motion | None = None, *, remove=(), add=(),
     setup = prepare(source, target, remove=remove, add=add, joint_map=joint_map, lengths=lengths,
                     directions=directions, scale=scale, local=local, target_path=target_path,
                     source_path=source_path)
+    if root_scale not in ROOT_SCALES:
+        raise RetargetError(f"root_scale must be one of {', '.join(ROOT_SCALES)}, got {root_scale!r}")
+    terms = None
+    if contacts is not None and contacts != "off":
+        if method != "lm":
+            raise RetargetError("the contact-aware solve needs --method lm")
+        if isinstance(contacts, str):
+            if contacts != "auto":
+                raise RetargetError(f"contacts must be 'auto', 'off' or contacts read from a file, got {contacts!r}")
+            from usdmotion.ops.contacts import detect_contacts
+
+            contacts = detect_contacts(source, source=source_path)
+        terms = contact_terms(setup, source, contacts, root_scale)
+        if terms is not None:  # the root trajectory scaled: every target moves with it
+            setup.targets[:, setup.mapped] += terms.shift[:, None]
+            setup.translations[:, setup.anchor] += terms.shift
+    if prior is None:
+        prior = PRIOR if setup.mode == "target" and method == "lm" else 0.0
+    rot_terms = (float(smooth), float(prior))
     init_name = _choose_init(setup, init, method)
     q0 = setup.inits[init_name]
-    centre = setup.translations[:, setup.anchor].copy()
-    t0 = setup.translations.copy()
-    t0[:, setup.anchor] -= centre
-    targets = setup.targets[:, setup.mapped] - centre[:, None]
     prepared = time.perf_counter()
-    solution = solve(_problem(setup), q0, t0, targets, method=method, iterations=iterations, progress=progress)
-    q, t = solution.q, solution.t
-    t[:, setup.anchor] += centre
-    # keep, per frame, the better of the initial guess and the float32 solution in float64
-    args = (setup.rig.parents, setup.mapped, setup.targets, setup.weights)
-    worse = frame_losses(t, q, *args) > frame_losses(setup.translations, q0, *args)
-    q[worse], t[worse] = q0[worse], setup.translations[worse]
+    q, t, solution = _solve(setup, q0, terms, rot_terms, method, iterations, progress)
     motion = _output_motion(source, setup, q, t)
     report = retarget_report.build(source, setup, motion, q0, init_name, method, iterations,
                                    {"setup": prepared - start, "compile": solution.compile_s, "solve": solution.run_s},
                                    source_path, target_path)
     report["chunks"] = {"frames_per_call": solution.chunk, "calls": solution.calls}
     report["iterations_run"] = solution.iterations
+    report["rotation_terms"] = {"smooth": rot_terms[0], "prior": rot_terms[1]}
+    report["quality"] = retarget_quality.quality(source, setup, motion, terms)
+    if terms is not None:
+        report["contacts"] = retarget_quality.contacts_summary(terms, root_scale)
+    if compare:
+        report["compare"] = _compare(source, setup, motion, q0, terms, rot_terms, iterations)
     report["time_s"]["total"] = time.perf_counter() - start
     return RetargetResult(motion, report)
+
+
+def _solve(setup: Setup, q0: np.ndarray, terms, rot_terms, method: str, iterations, progress,
+           floor_height: float | None = None):
+    """Step 2 and the unmapped-joint rules: ``(q (F,J,4), t (F,J,3), Solution)``;
+    ``floor_height`` (target units) for a floor root bone (default: the contacts' floor or estimated)."""
+    centre = setup.translations[:, setup.anchor].copy()
+    t0 = setup.translations.copy()
+    t0[:, setup.anchor] -= centre
+    targets = setup.targets[:, setup.mapped] - centre[:, None]
+    problem = _problem(setup, terms, *rot_terms)
+    weights = floor = None
+    if terms is not None:
+        targets = np.concatenate([targets, terms.targets - centre[:, None]], axis=1)
+        weights = np.concatenate([np.broadcast_to(problem.weights, (len(q0), len(problem.weights))), terms.weights],
+                                 axis=1)
+        floor = terms.floor - centre[:, terms.up]
+    if terms is not None:  # warm start: the plain solve first, then the contacts move what they must
+        plain = solve(_problem(setup, None, *rot_terms), q0, t0, targets[:, : len(setup.mapped)], method=method,
+                      iterations=iterations)
+        solution = solve(problem, plain.q, plain.t, targets, method=method, iterations=iterations,
+                         progress=progress, weights=weights, floor=floor)
+        solution = dataclasses.replace(solution, compile_s=solution.compile_s + plain.compile_s,
+                                       run_s=solution.run_s + plain.run_s,
+                                       iterations=solution.iterations + plain.iterations)
+    else:
+        solution = solve(problem, q0, t0, targets, method=method, iterations=iterations, progress=progress,
+                         weights=weights, floor=floor)
+    q, t = solution.q, solution.t
+    t[:, setup.anchor] += centre
+    if terms is None and not problem.smoothing and not problem.anchored:
+        # keep, per frame, the better of the initial guess and the float32 solution in float64
+        args = (setup.rig.parents, setup.mapped, setup.targets, setup.weights)
+        worse = frame_losses(t, q, *args) > frame_losses(setup.translations, q0, *args)
+        q[worse], t[worse] = q0[worse], setup.translations[worse]
+    q, t = unmapped_rules(setup, q, t, terms.floor if terms is not None else floor_height)
+    return continuous_hemisphere(q), t, solution
+
+
+def _compare(source: Motion, setup: Setup, motion: Motion, q0: np.ndarray, terms, rot_terms, iterations) -> dict:
+    """Quality of rotation copying, the plain solve and this result side by side."""
+    floor = terms.floor if terms is not None else None
+    copy_q, copy_t = unmapped_rules(setup, setup.inits["copy"], setup.translations.copy(), floor)
+    rows = {"rotation_copy": _output_motion(source, setup, continuous_hemisphere(copy_q), copy_t)}
+    solved = {}
+    if terms is not None:
+        q, t, solution = _solve(setup, q0, None, rot_terms, "lm", iterations, None, floor)
+        rows["plain"] = _output_motion(source, setup, q, t)
+        solved["plain"] = {"frames_per_second_solve": source.n_frames / solution.run_s if solution.run_s else None,
+                           "iterations_run": solution.iterations}
+    rows["result"] = motion
+    return {name: {**retarget_quality.quality(source, setup, m, terms), **solved.get(name, {})}
+            for name, m in rows.items()}
 
 
 def _output_motion(source: Motion, setup: Setup, q: np.ndarray, t: np.ndarray) -> Motion:

@@ -6,7 +6,7 @@ step (:mod:`usdmotion.ops.retarget.tree_step`), which import it and not each oth
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -45,6 +45,18 @@ class Problem:
         rot_joints: ``(R,)`` joints whose rotation is optimised.
         trans_joints: ``(T,)`` joints whose local translation is optimised.
         orders: ``R`` Euler orders (``"ZXY"``...) of ``rot_joints`` (Adam's parameters).
+        contact_joints: ``(C,)`` target joints with a contact term (per-frame weight and
+            target position, e.g. a planted foot); empty for the plain solve.
+        floor_joints: ``(G,)`` target joints kept above the floor (a one-sided term on
+            their height, weight ``floor_weight`` per unit² below it).
+        up: index of the vertical axis (1: Y-up, 2: Z-up) for the floor term.
+        smooth: ``(R,)`` weight per rotation joint of the temporal term (units² per
+            radian², 0 = off): the world rotation's distance from the midpoint of its
+            neighbouring frames' (a second difference: constant angular velocity is free).
+        prior: ``(R,)`` weight per rotation joint of the distance of its world rotation from
+            the initial guess's (units² per radian², 0 = off): directions the positions
+            barely determine (the twist of a nearly straight limb) stay where the
+            continuous initial guess put them instead of wandering between frames.
     """
 
     parents: np.ndarray
@@ -53,10 +65,36 @@ class Problem:
     rot_joints: np.ndarray
     trans_joints: np.ndarray
     orders: tuple[str, ...]
+    contact_joints: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    floor_joints: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    up: int = 1
+    floor_weight: float = 0.0
+    smooth: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    prior: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     def key(self) -> tuple:
         return (tuple(self.parents.tolist()), tuple(self.mapped.tolist()), tuple(np.round(self.weights, 12).tolist()),
-                tuple(self.rot_joints.tolist()), tuple(self.trans_joints.tolist()), self.orders)
+                tuple(self.rot_joints.tolist()), tuple(self.trans_joints.tolist()), self.orders,
+                tuple(self.contact_joints.tolist()), tuple(self.floor_joints.tolist()), self.up,
+                round(float(self.floor_weight), 12), tuple(np.round(self.smooth, 12).tolist()),
+                tuple(np.round(self.prior, 12).tolist()))
+
+    @property
+    def points(self) -> np.ndarray:
+        """``(M + C + G,)`` the joints of every position residual: mapped, contact, floor."""
+        return np.concatenate([self.mapped, self.contact_joints, self.floor_joints]).astype(np.int64)
+
+    @property
+    def smoothing(self) -> bool:
+        return bool(len(self.smooth)) and bool(np.any(self.smooth > 0))
+
+    @property
+    def anchored(self) -> bool:
+        return bool(len(self.prior)) and bool(np.any(self.prior > 0))
+
+    def point_weights(self) -> np.ndarray:
+        """``(M + C,)`` default weights of the mapped and contact points (contacts: 0, i.e. off)."""
+        return np.concatenate([self.weights, np.zeros(len(self.contact_joints))])
 
     @property
     def n_params(self) -> int:
@@ -64,9 +102,10 @@ class Problem:
 
 
 def masks(problem: Problem) -> tuple[np.ndarray, np.ndarray]:
-    """``(rot_mask (M, R), trans_mask (M, T))``: which parameters move which mapped joint."""
+    """``(rot_mask (P, R), trans_mask (P, T))``: which parameters move which residual point
+    (:attr:`Problem.points`)."""
     anc = ancestor_matrix(problem.parents)
-    rot = anc[problem.rot_joints][:, problem.mapped].T
+    rot = anc[problem.rot_joints][:, problem.points].T
     sub = anc | np.eye(len(problem.parents), dtype=bool)
-    trans = sub[problem.trans_joints][:, problem.mapped].T
+    trans = sub[problem.trans_joints][:, problem.points].T
     return rot.astype(np.float32), trans.astype(np.float32)

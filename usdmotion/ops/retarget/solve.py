@@ -43,9 +43,12 @@ from usdmotion.ops.retarget.hierarchy import ancestor_matrix
 from usdmotion.ops.retarget.problem import (ADAM_ITERATIONS, ADAM_LR, LM_ATOL, LM_DIAG_FLOOR, LM_DOWN, LM_ITERATIONS,
                                             LM_LAMBDA0, LM_LAMBDA_MAX, LM_LAMBDA_MIN, LM_NULL_DAMPING, LM_RTOL,
                                             LM_RTOL_TOTAL, LM_UP, Problem, masks)
+from usdmotion.ops.retarget.adam import make_adam
+from usdmotion.ops.retarget.rotation_terms import make_rotation_terms
 from usdmotion.ops.retarget.tree_step import make_tree_step
 from usdmotion.progress import Progress
-from usdmotion.rotations import euler_to_quat, quat_exp, quat_mul, quat_normalize, quat_rotate, quat_to_euler
+from usdmotion.rotations import (quat_exp, quat_mul, quat_normalize, quat_rotate,
+                                 quat_to_euler)
 
 # JAX (and optax) are imported inside the functions that use them: a deliberately deferred
 # heavy dependency (seconds of start-up), needed only once a solve runs.
@@ -60,21 +63,24 @@ def _skew(a):
 
 
 def make_jacobian(problem: Problem):
-    """``world_p (B,J,3) -> J (B, 3M, P)``: the analytic Jacobian of the weighted residuals
-    ``√w_m (p_m − p̂_m)`` with respect to world-frame rotation increments ``ω_j`` of the
-    rotation joints (``∂p_m/∂ω_j = [p_j − p_m]_×`` for mapped descendants ``m``) and
-    world-frame increments of the free translations (identity on their subtree)."""
+    """``(world_p (B,J,3), w=None (B,P)) -> J (B, 3P, P')``: the analytic Jacobian of the
+    weighted residuals ``√w_m (p_m − p̂_m)`` of the points :attr:`Problem.points` with
+    respect to world-frame rotation increments ``ω_j`` of the rotation joints
+    (``∂p_m/∂ω_j = [p_j − p_m]_×`` for descendants ``m``) and world-frame increments of
+    the free translations (identity on their subtree); ``w``: per-frame weights (default
+    the problem's static ones)."""
     import jax.numpy as jnp
 
-    mapped = jnp.asarray(problem.mapped)
-    sqrt_w = jnp.asarray(np.sqrt(problem.weights), jnp.float32)
+    mapped = jnp.asarray(problem.points)
+    default_w = jnp.asarray(np.r_[problem.point_weights(), np.zeros(len(problem.floor_joints))], jnp.float32)
     rot_j = jnp.asarray(problem.rot_joints)
     rot_mask, trans_mask = (jnp.asarray(m) for m in masks(problem))
-    n_rot, n_trans, n_map = len(problem.rot_joints), len(problem.trans_joints), len(problem.mapped)
+    n_rot, n_trans, n_map = len(problem.rot_joints), len(problem.trans_joints), len(problem.points)
     eye3 = jnp.eye(3, dtype=jnp.float32)
 
-    def jacobian(world_p):
+    def jacobian(world_p, w=None):
         batch = world_p.shape[0]
+        sqrt_w = jnp.sqrt(jnp.broadcast_to(default_w if w is None else w, (batch, n_map)).astype(world_p.dtype))
         blocks = []
         if n_rot:
             a = world_p[:, None, rot_j] - world_p[:, mapped, None]  # (B, M, R, 3)
@@ -84,7 +90,7 @@ def make_jacobian(problem: Problem):
             jt = trans_mask[:, None, :, None] * eye3[None, :, None, :]  # (M, 3, T, 3)
             blocks.append(jnp.broadcast_to(jt.reshape(1, 3 * n_map, 3 * n_trans), (batch, 3 * n_map, 3 * n_trans)))
         jac = jnp.concatenate(blocks, axis=-1) if len(blocks) > 1 else blocks[0]
-        return jac * jnp.repeat(sqrt_w, 3)[None, :, None]
+        return jac * jnp.repeat(sqrt_w, 3, axis=-1)[:, :, None]
 
     return jacobian
 
@@ -122,18 +128,36 @@ def make_apply(problem: Problem):
 
 
 def make_residuals(problem: Problem):
-    """``(q, t, targets) -> (world_q, world_p, r (B, M, 3), loss (B,))`` with
-    ``r = p_mapped − targets`` and ``loss = Σ_m w_m ‖r_m‖²`` per frame."""
+    """``(q, t, targets (B, M+C, 3), w=None (B, M+C), floor=None (B,)) -> (world_q, world_p,
+    r (B, P, 3), loss (B,), w (B, P))``.
+
+    ``r`` holds the residuals of the points :attr:`Problem.points`: ``p − target`` for the
+    mapped and contact joints, and for the floor joints ``(p_up − floor)`` on the vertical
+    axis where a joint is below the floor (0 elsewhere; weight ``floor_weight`` there, 0
+    elsewhere — a one-sided term). ``loss = Σ w ‖r‖²`` per frame. ``w`` defaults to the
+    problem's static weights (contact terms off). The LM step treats a floor residual like
+    the others, i.e. as the distance to the joint's projection onto the floor held at the
+    current iterate: the same gradient, and a Gauss–Newton model that also resists sliding
+    a joint that is below the floor."""
     import jax.numpy as jnp
 
     parents = problem.parents
-    mapped = jnp.asarray(problem.mapped)
-    w = jnp.asarray(problem.weights, jnp.float32)
+    near = jnp.asarray(np.r_[problem.mapped, problem.contact_joints].astype(np.int64))
+    floor_j = jnp.asarray(problem.floor_joints)
+    default_w = jnp.asarray(problem.point_weights(), jnp.float32)
+    n_floor, up = len(problem.floor_joints), int(problem.up)
 
-    def residuals(q, t, targets):
+    def residuals(q, t, targets, w=None, floor=None):
         world_q, world_p = fk_arrays(q, t, parents)
-        r = world_p[:, mapped] - targets
-        return world_q, world_p, r, jnp.einsum("bmk,bmk,m->b", r, r, w.astype(r.dtype))
+        r = world_p[:, near] - targets
+        w = jnp.broadcast_to(default_w if w is None else w, r.shape[:2]).astype(r.dtype)
+        if n_floor:
+            height = world_p[:, floor_j, up] - (0.0 if floor is None else floor[:, None])
+            below = height < 0
+            r = jnp.concatenate([r, jnp.zeros(height.shape + (3,), r.dtype).at[..., up].set(
+                jnp.where(below, height, 0.0))], axis=1)
+            w = jnp.concatenate([w, jnp.where(below, problem.floor_weight, 0.0).astype(r.dtype)], axis=1)
+        return world_q, world_p, r, jnp.einsum("bmk,bmk,bm->b", r, r, w), w
 
     return residuals
 
@@ -150,17 +174,19 @@ def single_point_joints(problem: Problem) -> tuple[np.ndarray, np.ndarray, np.nd
 
 
 def make_dense_step(problem: Problem):
-    """``(world_p, r, lam) -> step``: the same LM step as :func:`make_tree_step` from the
-    explicit Jacobian, ``JᵀWJ`` and a batched Cholesky factorisation (reference)."""
+    """``(world_p, r, lam, w=None) -> step``: the same LM step as :func:`make_tree_step`
+    (point residuals only) from the explicit Jacobian, ``JᵀWJ`` and a batched Cholesky
+    factorisation (reference)."""
     import jax
     import jax.numpy as jnp
 
     jacobian = make_jacobian(problem)
-    sqrt_w = jnp.sqrt(jnp.asarray(problem.weights, jnp.float32))
+    default_w = jnp.asarray(np.r_[problem.point_weights(), np.zeros(len(problem.floor_joints))], jnp.float32)
 
-    def step(world_p, r, lam):
-        jac = jacobian(world_p)
-        rw = (r * sqrt_w[:, None].astype(r.dtype)).reshape(r.shape[0], -1)
+    def step(world_p, r, lam, w=None):
+        w = jnp.broadcast_to(default_w if w is None else w, r.shape[:2]).astype(r.dtype)
+        jac = jacobian(world_p, w)
+        rw = (r * jnp.sqrt(w)[..., None]).reshape(r.shape[0], -1)
         h, g = jnp.einsum("bri,brj->bij", jac, jac), jnp.einsum("bri,br->bi", jac, rw)
         diag = jnp.diagonal(h, axis1=1, axis2=2).reshape(h.shape[0], -1, 3)
         mean = jnp.mean(diag, axis=-1, keepdims=True)
@@ -173,8 +199,8 @@ def make_dense_step(problem: Problem):
 
 
 def make_lm_step(problem: Problem, linear: str = "tree"):
-    """``(world_p, r, lam) -> step (B, P)``: the LM step (``linear``: ``"tree"`` or
-    ``"dense"``) with the twist of every :func:`single_point_joints` joint about the line
+    """``(world_p, r, lam, w=None, rot_r=None, rot_w=None) -> step (B, P)``: the LM step
+    (``linear``: ``"tree"`` or ``"dense"``, which takes no rotation residuals) with the twist of every :func:`single_point_joints` joint about the line
     to its one mapped descendant removed: the loss cannot see it, so left in, float32
     noise would make it drift over the iterations and flip bones by up to 180° between
     frames. The twist then stays where the (smooth) initial guess put it."""
@@ -185,8 +211,8 @@ def make_lm_step(problem: Problem, linear: str = "tree"):
     slot, joint, point = (jnp.asarray(a) for a in single_point_joints(problem))
     n_rot = len(problem.rot_joints)
 
-    def lm_step(world_p, r, lam):
-        step = linear_step(world_p, r, lam)
+    def lm_step(world_p, r, lam, w=None, rot_r=None, rot_w=None):
+        step = linear_step(world_p, r, lam, w, rot_r, rot_w) if linear == "tree" else linear_step(world_p, r, lam, w)
         if slot.size == 0:
             return step
         omega = step[:, : 3 * n_rot].reshape(step.shape[0], n_rot, 3)
@@ -200,11 +226,14 @@ def make_lm_step(problem: Problem, linear: str = "tree"):
 
 
 def _make_lm(problem: Problem, iterations: int, linear: str = "tree"):
-    """A jitted ``(q, t, targets) -> (q, t, loss (B,), initial loss (B,), iterations run)``
-    LM solver (at most ``iterations``; stops early when every frame has converged).
+    """A jitted ``(q, t, targets, w, floor, smooth_mask) -> (q, t, loss (B,), initial loss (B,),
+    iterations run)`` LM solver (at most ``iterations``; stops early when every frame has
+    converged). ``targets (B, M+C, 3)`` and ``w (B, M+C)``: positions and weights of the
+    mapped and contact points; ``floor (B,)``: floor height (centred like the positions);
+    ``smooth_mask (B,)``: frames whose neighbours are real (the temporal term).
 
     ``linear``: ``"tree"`` (:func:`make_tree_step`, default) or ``"dense"``
-    (:func:`make_dense_step`); both solve the same damped system.
+    (:func:`make_dense_step`, without the temporal term); both solve the same damped system.
     """
     import jax
     import jax.numpy as jnp
@@ -212,9 +241,18 @@ def _make_lm(problem: Problem, iterations: int, linear: str = "tree"):
     evaluate = make_residuals(problem)
     apply = make_apply(problem)
     lm_step = make_lm_step(problem, linear)
+    smoothing = (problem.smoothing or problem.anchored) and linear == "tree"
+    # contact and floor terms weigh 100–1000× the positions: rejected steps are common while
+    # λ adapts, so they must not count as convergence
+    stiff = bool(len(problem.contact_joints) or len(problem.floor_joints))
+    smoothness = make_rotation_terms(problem) if smoothing else None
+    rot_j = jnp.asarray(problem.rot_joints)
 
-    def solve(q, t, targets):
-        world_q, world_p, r, loss = evaluate(q, t, targets)
+    def solve(q, t, targets, w, floor, smooth_mask):
+        world_q, world_p, r, loss, w_all = evaluate(q, t, targets, w, floor)
+        prior = world_q[:, rot_j] if problem.anchored else None
+        if smoothing:
+            loss = loss + smoothness(world_q, smooth_mask, None, prior)[2]
         initial = loss
         lam = jnp.full(loss.shape, LM_LAMBDA0, loss.dtype)
         stall = jnp.zeros(loss.shape, jnp.int32)  # iterations in a row without real progress
@@ -225,91 +263,43 @@ def _make_lm(problem: Problem, iterations: int, linear: str = "tree"):
             return (i < iterations) & ~jnp.all(frames_done) & (flat < 2)
 
         def body(carry):
-            i, q, t, world_q, world_p, r, loss, lam, stall, flat = carry
-            q2, t2 = apply(q, t, world_q, lm_step(world_p, r, lam))
-            world_q2, world_p2, r2, loss2 = evaluate(q2, t2, targets)
+            i, q, t, world_q, world_p, r, loss, lam, stall, flat, w_all = carry
+            if smoothing:  # neighbours held for this iteration (Jacobi over time)
+                mid = smoothness.midpoints(world_q)
+                rot_r, rot_w, s_loss = smoothness(world_q, smooth_mask, mid, prior)
+                loss = evaluate_loss(r, w_all) + s_loss
+                q2, t2 = apply(q, t, world_q, lm_step(world_p, r, lam, w_all, rot_r, rot_w))
+            else:
+                q2, t2 = apply(q, t, world_q, lm_step(world_p, r, lam, w_all))
+            world_q2, world_p2, r2, loss2, w2 = evaluate(q2, t2, targets, w, floor)
+            if smoothing:
+                loss2 = loss2 + smoothness(world_q2, smooth_mask, mid, prior)[2]
             ok = (loss2 < loss) & jnp.isfinite(loss2)
             gain = jnp.where(ok, (loss - loss2) / jnp.maximum(loss, 1e-30), 0.0)
-            stall = jnp.where(gain > LM_RTOL, 0, stall + 1)
+            if stiff:  # a rejected step only raises λ: a frame has stalled when accepted steps gain nothing
+                stall = jnp.where(gain > LM_RTOL, 0, jnp.where(ok | (lam >= LM_LAMBDA_MAX), stall + 1, stall))
+            else:
+                stall = jnp.where(gain > LM_RTOL, 0, stall + 1)
             pick = lambda new, old: jnp.where(ok.reshape((-1,) + (1,) * (new.ndim - 1)), new, old)  # noqa: E731
             new_loss = pick(loss2, loss)
             total_gain = (jnp.sum(loss) - jnp.sum(new_loss)) / jnp.maximum(jnp.sum(loss), 1e-30)
             flat = jnp.where(total_gain < LM_RTOL_TOTAL, flat + 1, 0)
             lam = jnp.clip(jnp.where(ok, lam * LM_DOWN, lam * LM_UP), LM_LAMBDA_MIN, LM_LAMBDA_MAX)
             return (i + 1, pick(q2, q), pick(t2, t), pick(world_q2, world_q), pick(world_p2, world_p), pick(r2, r),
-                    new_loss, lam, stall, flat)
+                    new_loss, lam, stall, flat, pick(w2, w_all))
 
         carry = jax.lax.while_loop(cond, body, (jnp.int32(0), q, t, world_q, world_p, r, loss, lam, stall,
-                                                jnp.int32(0)))
+                                                jnp.int32(0), w_all))
         return carry[1], carry[2], carry[6], initial, carry[0]
 
     return jax.jit(solve)
 
 
-def _euler_quats(theta, orders_groups, n_rot):
-    """Quaternions ``(B, R, 4)`` of Euler angles ``(B, R, 3)``, one conversion per order group."""
+def evaluate_loss(r, w):
+    """``Σ_p w_p ‖r_p‖²`` per frame of residuals ``r (B, P, 3)`` and weights ``w (B, P)``."""
     import jax.numpy as jnp
 
-    out = jnp.zeros(theta.shape[:-1] + (4,), theta.dtype)
-    for order, idx in orders_groups:
-        out = out.at[:, idx].set(euler_to_quat(theta[:, idx], order))
-    return out
-
-
-def _make_adam(problem: Problem, iterations: int, lr: float):
-    """A jitted ``(q, t, targets, theta0) -> (q, t, loss, initial loss)`` per-frame Adam."""
-    import jax
-    import jax.numpy as jnp
-    import optax
-
-    parents = problem.parents
-    mapped = jnp.asarray(problem.mapped)
-    w = jnp.asarray(problem.weights, jnp.float32)
-    rot_j = jnp.asarray(problem.rot_joints)
-    trans_j = jnp.asarray(problem.trans_joints)
-    groups = {}
-    for k, order in enumerate(problem.orders):
-        groups.setdefault(order, []).append(k)
-    groups = tuple((order, np.asarray(idx)) for order, idx in groups.items())
-    n_rot = len(problem.rot_joints)
-    optimiser = optax.adam(lr)
-
-    def frame_losses(params, q, t, targets):
-        theta, tt = params
-        q = q.at[:, rot_j].set(_euler_quats(theta, groups, n_rot)) if n_rot else q
-        t = t.at[:, trans_j].set(tt) if len(problem.trans_joints) else t
-        _, world_p = fk_arrays(q, t, parents)
-        d = world_p[:, mapped] - targets
-        per_frame = jnp.sum(w[None, :] * jnp.sum(d * d, axis=-1), axis=1)
-        return jnp.sum(per_frame), per_frame
-
-    grad = jax.value_and_grad(frame_losses, has_aux=True)
-
-    def solve(q, t, targets, theta0):
-        params = (theta0, t[:, trans_j])
-        state = optimiser.init(params)
-        (_, initial), _ = grad(params, q, t, targets)
-
-        def body(_, carry):
-            params, state, best, best_loss = carry
-            (_, loss), g = grad(params, q, t, targets)
-            better = loss < best_loss  # the loss of the current params, before the update
-            best = jax.tree.map(lambda b, p: jnp.where(better.reshape((-1,) + (1,) * (p.ndim - 1)), p, b), best, params)
-            best_loss = jnp.where(better, loss, best_loss)
-            updates, state = optimiser.update(g, state, params)
-            return optax.apply_updates(params, updates), state, best, best_loss
-
-        params, state, best, best_loss = jax.lax.fori_loop(0, iterations, body, (params, state, params, initial))
-        (_, last), _ = grad(params, q, t, targets)
-        better = last < best_loss
-        best = jax.tree.map(lambda b, p: jnp.where(better.reshape((-1,) + (1,) * (p.ndim - 1)), p, b), best, params)
-        best_loss = jnp.where(better, last, best_loss)
-        theta, tt = best
-        q = q.at[:, rot_j].set(_euler_quats(theta, groups, n_rot)) if n_rot else q
-        t = t.at[:, trans_j].set(tt) if len(problem.trans_joints) else t
-        return q, t, best_loss, initial, jnp.int32(iterations)
-
-    return jax.jit(solve)
+    return jnp.einsum("bmk,bmk,bm->b", r, r, w)
 
 
 _EXECUTABLES: dict = {}
@@ -322,7 +312,7 @@ def _executable(problem: Problem, method: str, iterations: int, lr: float, args)
     if key in _EXECUTABLES:
         return _EXECUTABLES[key], 0.0
     start = time.perf_counter()
-    fn = _make_lm(problem, iterations) if method == "lm" else _make_adam(problem, iterations, lr)
+    fn = _make_lm(problem, iterations) if method == "lm" else make_adam(problem, iterations, lr)
     compiled = fn.lower(*args).compile()
     if len(_EXECUTABLES) >= 32:
         _EXECUTABLES.pop(next(iter(_EXECUTABLES)))
@@ -341,7 +331,7 @@ def _bucket(n: int, smallest: int = 16) -> int:
 def chunk_plan(n_frames: int, problem: Problem, budget_bytes: float = 64e6) -> tuple[int, int]:
     """``(frames per compiled call, number of calls)``: equal chunks under a memory budget
     (Jacobian and normal matrices, float32), each padded to a :func:`_bucket` size."""
-    n_params, n_rows = max(problem.n_params, 3), 3 * len(problem.mapped)
+    n_params, n_rows = max(problem.n_params, 3), 3 * len(problem.points)
     per_frame = 4 * 3 * (n_rows * n_params + n_params * n_params)
     largest = int(min(4096, max(64, budget_bytes // per_frame)))
     calls = -(-n_frames // largest)
@@ -376,7 +366,8 @@ class Solution:
 
 def solve(problem: Problem, q0: np.ndarray, t0: np.ndarray, targets: np.ndarray, method: str = "lm",
           iterations: int | None = None, chunk: int | None = None, lr: float = ADAM_LR,
-          progress: Progress | None = None) -> Solution:
+          progress: Progress | None = None, weights: np.ndarray | None = None,
+          floor: np.ndarray | None = None) -> Solution:
     """Optimise rotations (and free translations) of all frames.
 
     Args:
@@ -390,6 +381,13 @@ def solve(problem: Problem, q0: np.ndarray, t0: np.ndarray, targets: np.ndarray,
         lr: Adam's learning rate.
         progress: optional :class:`usdmotion.progress.Progress`, called ``(frames done, n_frames, message)``
             after every chunk.
+        weights: ``(F, M + C)`` per-frame weights of the mapped and contact points (default:
+            the problem's static weights; contact terms off). ``targets`` is then
+            ``(F, M + C, 3)``.
+        floor: ``(F,)`` floor height on the up axis, centred like ``t0`` (floor term).
+
+    LM solves every chunk of consecutive frames in one compiled call; the temporal term
+    (``problem.smooth``) links neighbouring frames inside a chunk (not across chunks).
     """
 
     import jax
@@ -398,6 +396,15 @@ def solve(problem: Problem, q0: np.ndarray, t0: np.ndarray, targets: np.ndarray,
 
     if method not in ("lm", "adam"):
         raise ValueError(f"unknown method {method!r}")
+    extra = len(problem.contact_joints) or len(problem.floor_joints) or problem.smoothing or problem.anchored
+    if method == "adam" and extra:
+        raise ValueError("the contact, floor and temporal terms need method 'lm'")
+    n_near = len(problem.mapped) + len(problem.contact_joints)
+    if weights is None:
+        weights = np.broadcast_to(problem.point_weights(), (q0.shape[0], n_near))
+    if targets.shape[1] < n_near:
+        targets = np.concatenate([targets, np.zeros((targets.shape[0], n_near - targets.shape[1], 3))], axis=1)
+    floor = np.zeros(q0.shape[0]) if floor is None else np.asarray(floor, np.float64)
     iterations = int(iterations if iterations is not None else (LM_ITERATIONS if method == "lm" else ADAM_ITERATIONS))
     n_frames = q0.shape[0]
     chunk = chunk or chunk_plan(n_frames, problem)[0]
@@ -413,6 +420,11 @@ def solve(problem: Problem, q0: np.ndarray, t0: np.ndarray, targets: np.ndarray,
         args = [jnp.asarray(a[pad], jnp.float32) for a in (q0, t0, targets)]
         if theta0 is not None:
             args.append(jnp.asarray(theta0[pad], jnp.float32))
+        else:
+            inner = np.zeros(chunk, np.float32)  # frames with two real neighbours in this chunk
+            inner[1: stop - start - 1] = 1.0
+            args += [jnp.asarray(weights[pad], jnp.float32), jnp.asarray(floor[pad], jnp.float32),
+                     jnp.asarray(inner)]
         fn, seconds = _executable(problem, method, iterations, float(lr), args)
         compile_s += seconds
         began = time.perf_counter()

@@ -33,7 +33,7 @@ class _Nodes:
     kind: np.ndarray        # (N,) 0 rotation, 1 translation
     joint: np.ndarray       # (N,) joint of each node
     parent: np.ndarray      # (N,) parent node, -1 at the top
-    attach: np.ndarray      # (M,) node that moves each mapped point first, -1 none
+    attach: np.ndarray      # (P,) node that moves each residual point first, -1 none
     levels: tuple           # ((node indices, parent position in the previous level), ...)
     step_slot: np.ndarray   # (N,) position of each node's 3 values in the (R + T) step layout
 
@@ -60,7 +60,7 @@ def _nodes(problem: Problem) -> _Nodes:
         return -1
 
     parent = np.array([above(int(j), False) if k == 0 else above(int(j), None) for j, k in zip(joint, kind)])
-    attach = np.array([above(int(m), False) for m in problem.mapped])
+    attach = np.array([above(int(m), False) for m in problem.points], np.int64)
     depth = np.zeros(len(joint), np.int64)
     order = sorted(range(len(joint)), key=lambda n: _node_depth(n, parent))
     for n in order:
@@ -198,11 +198,18 @@ def _solve_node(minv, g, atb, a, z):
 
 
 def make_tree_step(problem: Problem):
-    """``(world_p (B,J,3), r (B,M,3), lam (B,)) -> step (B, P)``: the damped Gauss–Newton
-    (Levenberg–Marquardt) step ``(H + λD) δ = −g`` solved exactly on the joint tree.
+    """``(world_p (B,J,3), r (B,P,3), lam (B,), w=None, rot_r=None, rot_w=None) -> step (B, P)``:
+    the damped Gauss–Newton (Levenberg–Marquardt) step ``(H + λD) δ = −g`` solved exactly on
+    the joint tree.
+
+    Residuals: ``r`` at the points :attr:`Problem.points` (mapped, contact, floor joints)
+    with per-frame weights ``w (B, P)`` (default: the problem's static weights), and
+    optionally world-rotation residuals ``rot_r (B, R, 3)`` (radians) of the rotation
+    joints with weights ``rot_w (B, R)``, whose Jacobian is the identity for every rotation
+    at or above the joint (the temporal term).
 
     A world rotation increment ``x_j`` of joint ``j`` is the twist ``ξ_j = A_j x_j`` with
-    ``A_j = [I; [p_j]×]`` (a free translation: ``A = [0; I]``); a mapped point ``m`` moves
+    ``A_j = [I; [p_j]×]`` (a free translation: ``A = [0; I]``); a point ``m`` moves
     by ``C_m Ξ_m`` with ``C_m = [−[p_m]×, I]`` and ``Ξ_m`` the sum of the twists of the
     nodes above it. A backward pass (deepest nodes first) folds every node's points and
     children into a 6×6 quadratic ``K`` and vector ``b`` in the twist coming from above,
@@ -222,18 +229,23 @@ def make_tree_step(problem: Problem):
 
     nodes = _nodes(problem)
     n_nodes = len(nodes.joint)
-    attach = np.zeros((max(n_nodes, 1), len(problem.mapped)), np.float32)
+    n_rot = len(problem.rot_joints)
+    points = problem.points
+    attach = np.zeros((max(n_nodes, 1), len(points)), np.float32)  # incidence: node -> its own points
     has = nodes.attach >= 0
-    attach[nodes.attach[has], np.flatnonzero(has)] = problem.weights[has]
+    attach[nodes.attach[has], np.flatnonzero(has)] = 1.0
     below = attach.copy()  # every point in a node's subtree (for the damping diagonal)
+    subtree = np.eye(max(n_nodes, 1), dtype=np.float32)  # node a -> nodes in its subtree (itself included)
     for n in sorted(range(n_nodes), key=lambda n: -_node_depth(n, nodes.parent)):
         if nodes.parent[n] >= 0:
             below[nodes.parent[n]] += below[n]
+            subtree[nodes.parent[n]] += subtree[n]
     both = jnp.asarray(np.concatenate([attach, below], axis=0))
-    wsum = jnp.asarray(attach.sum(axis=1))[:, None]
-    wbelow = jnp.asarray(below.sum(axis=1))[:, None]
+    rot_subtree = jnp.asarray(subtree[:n_nodes, :n_rot])
+    default_w = jnp.asarray(problem.point_weights(), jnp.float32)
+    n_floor = len(problem.floor_joints)
     node_joint = jnp.asarray(nodes.joint)
-    mapped = jnp.asarray(problem.mapped)
+    point_joint = jnp.asarray(points)
     is_rot = jnp.asarray((nodes.kind == 0).astype(np.float32))[:, None]
     levels = []
     for d, (idx, pos) in enumerate(nodes.levels):
@@ -242,6 +254,7 @@ def make_tree_step(problem: Problem):
         rot = jnp.asarray((nodes.kind[idx] == 0).astype(np.float32))[:, None]
         levels.append((jnp.asarray(idx), jnp.asarray(pos), up, nodes.kind[idx], rot))
     order = np.argsort(np.concatenate([idx for idx, _ in nodes.levels])) if n_nodes else np.zeros(0, int)
+    diag = [k for k, (i, j) in enumerate(_TRI) if i == j and i < 3]  # the angular diagonal of K
 
     def twist_map(kinds, p, rot):
         x, y, z = p[:, 0], p[:, 1], p[:, 2]
@@ -254,14 +267,19 @@ def make_tree_step(problem: Problem):
         return ([[_mul(rot, e) for e in row] for row in eye]
                 + [[_add(_mul(rot, s_), _mul(1.0 - rot, e)) for s_, e in zip(rs, re)] for rs, re in zip(skew, eye)])
 
-    def step(world_p, r, lam):
+    def step(world_p, r, lam, w=None, rot_r=None, rot_w=None):
         batch = world_p.shape[0]
-        pm = jnp.transpose(world_p[:, mapped], (1, 2, 0))  # (M, 3, B)
+        if w is None:
+            w = jnp.broadcast_to(jnp.concatenate([default_w, jnp.zeros(n_floor, jnp.float32)]).astype(world_p.dtype),
+                                 (batch, len(points)))
+        wt = jnp.transpose(w)[:, None, :]  # (P, 1, B)
+        pm = jnp.transpose(world_p[:, point_joint], (1, 2, 0))  # (P, 3, B)
         rm = jnp.transpose(r, (1, 2, 0))
         outer = (pm[:, :, None] * pm[:, None, :]).reshape(-1, 9, batch)
-        feats = jnp.concatenate([pm, outer, rm, jnp.cross(pm, rm, axis=1)], axis=1)  # (M, 18, B)
-        mom = (both @ feats.reshape(feats.shape[0], -1)).reshape(-1, 18, batch)
+        feats = jnp.concatenate([pm, outer, rm, jnp.cross(pm, rm, axis=1), jnp.ones_like(pm[:, :1])], axis=1) * wt
+        mom = (both.astype(feats.dtype) @ feats.reshape(feats.shape[0], -1)).reshape(-1, 19, batch)
         mom, sub = mom[:n_nodes], mom[n_nodes:]
+        wsum, wbelow = mom[:, 18], sub[:, 18]  # (N, B)
         sx, sy, sz = mom[:, 0], mom[:, 1], mom[:, 2]
         q2 = [[mom[:, 3 + 3 * i + j] for j in range(3)] for i in range(3)]
         trace = q2[0][0] + q2[1][1] + q2[2][2]
@@ -270,13 +288,19 @@ def make_tree_step(problem: Problem):
                   + [[_mul(-1.0, e) for e in sk[i]] + [wsum if i == j else 0 for j in range(3)] for i in range(3)])
         k_pts = _sym_dense(k_rows, (n_nodes, batch))  # (N, 21, B)
         b_pts = jnp.concatenate([mom[:, 15:18], mom[:, 12:15]], axis=1)  # (N, 6, B): [Σ w p × r; Σ w r]
+        rot_below = 0.0
+        if rot_w is not None and n_rot:
+            rw = jnp.transpose(rot_w)  # (R, B)
+            k_pts = k_pts.at[:n_rot, diag].add(rw[:, None, :])
+            b_pts = b_pts.at[:n_rot, :3].add(jnp.transpose(rot_r, (1, 2, 0)) * rw[:, None, :])
+            rot_below = (rot_subtree.astype(rw.dtype) @ rw)[:, None, :]  # (N, 1, B)
         pj = jnp.transpose(world_p[:, node_joint], (1, 2, 0))  # (N, 3, B)
         # diagonal of H's joint blocks: Σ_subtree w (|a|² − a_i²), a = p_m − p_j (rotations); Σ w (translations)
         ps, pq = sub[:, 0:3], [sub[:, 3 + 4 * i] for i in range(3)]
         centred = [jnp.maximum(pq[i] - 2 * pj[:, i] * ps[:, i] + wbelow * pj[:, i] ** 2, 0.0) for i in range(3)]
         total = centred[0] + centred[1] + centred[2]
-        h_diag = jnp.stack([total - c for c in centred], 1) * is_rot[:, :, None] + \
-            wbelow[:, :, None] * (1.0 - is_rot[:, :, None])  # (N, 3, B)
+        h_diag = (jnp.stack([total - c for c in centred], 1) + rot_below) * is_rot[:, :, None] + \
+            wbelow[:, None, :] * (1.0 - is_rot[:, :, None])  # (N, 3, B)
         k_up, b_up, store = {}, {}, {}
         for d in range(len(levels) - 1, -1, -1):  # backward: deepest level first
             idx, _, up, kinds, rot = levels[d]

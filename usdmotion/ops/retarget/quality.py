@@ -1,0 +1,88 @@
+"""What a coach sees in a retargeted motion, as numbers (JSON-ready, float64 from the result).
+
+* ``rms_cm``: joint-position RMS of the mapped joints to their (converted, scaled)
+  source positions — the targets of the solve, root scaling included — in cm;
+* ``rotation_steps``: per target joint the largest change of its local rotation between
+  consecutive frames (degrees) against a limit: twice the largest step of the source
+  joint it follows, or for joints no source joint drives 30° per frame at 120 fps
+  (scaled by the frame rate); never below :data:`STEP_FLOOR_DEG` at 120 fps (a joint the
+  source barely moves may still be moved a little). ``flips`` lists the joints above it;
+* with contacts, ``feet`` (:func:`usdmotion.ops.contacts.foot_metrics` on the target's
+  contact joints: skate cm/s, penetration and floating against the planted level) and
+  ``floor`` (the lowest of all moved joints against the floor: max depth cm, frames deeper
+  than :data:`BELOW_FLOOR_CM`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from usdmotion.kinematics import fk_arrays, local_translations
+from usdmotion.motion import Motion
+
+#: Unmapped joints: at most this many degrees per frame at 120 fps.
+UNMAPPED_STEP_DEG = 30.0
+#: Smallest limit (degrees per frame at 120 fps) of a mapped joint's rotation step.
+STEP_FLOOR_DEG = 1.0
+#: Depth below the floor (cm) from which a frame counts as penetrating.
+BELOW_FLOOR_CM = 0.1
+
+
+def rotation_steps(rotations: np.ndarray) -> np.ndarray:
+    """``(J,)`` largest angle (degrees) between consecutive frames' local rotations ``(F, J, 4)``."""
+    if rotations.shape[0] < 2:
+        return np.zeros(rotations.shape[1])
+    dot = np.abs(np.sum(rotations[1:] * rotations[:-1], axis=-1)).clip(0.0, 1.0)
+    return np.degrees(2 * np.arccos(dot)).max(axis=0)
+
+
+def step_limits(source: Motion, setup) -> np.ndarray:
+    """``(J,)`` allowed step per target joint (degrees per frame, see the module docstring)."""
+    per_frame = 120.0 / source.fps
+    src = rotation_steps(source.rotations)
+    follows = (setup.source_of >= 0) & (setup.weights > 0)
+    limit = np.full(setup.rig.n_joints, UNMAPPED_STEP_DEG * per_frame)
+    limit[follows] = np.maximum(2.0 * src[setup.source_of[follows]], STEP_FLOOR_DEG * per_frame)
+    return limit
+
+
+def quality(source: Motion, setup, motion: Motion, terms=None) -> dict:
+    """The quality figures of ``motion`` (a result on ``setup``'s rig; see the module docstring)."""
+    rig, mapped = setup.rig, setup.mapped
+    world = fk_arrays(motion.rotations, local_translations(motion), rig.parents)[1]
+    cm = motion.meters_per_unit * 100.0
+    err = np.linalg.norm(world[:, mapped] - setup.targets[:, mapped], axis=-1)
+    steps = rotation_steps(motion.rotations)
+    limits = step_limits(source, setup)
+    live = ~rig.end_sites
+    flips = {rig.joint_names[j]: {"step_deg": float(steps[j]), "limit_deg": float(limits[j])}
+             for j in np.flatnonzero(live & (steps > limits))}
+    out = {
+        "rms_cm": float(np.sqrt(np.mean(err ** 2)) * cm),
+        "rotation_steps": {rig.joint_names[j]: {"step_deg": round(float(steps[j]), 3),
+                                                "limit_deg": round(float(limits[j]), 3)}
+                           for j in np.flatnonzero(live)},
+        "flips": flips,
+    }
+    if terms is not None:
+        from usdmotion.ops.contacts import foot_metrics
+
+        out["feet"] = foot_metrics(world * motion.meters_per_unit, motion.fps, terms.target_contacts).as_dict()
+        out["floor"] = floor_penetration(world, terms.floor, terms.up, cm)
+    return out
+
+
+def floor_penetration(world: np.ndarray, floor: float, up: int, cm: float) -> dict:
+    """``max_depth_cm`` of any joint of ``world (F, J, 3)`` below ``floor`` and ``frames_below``
+    (deeper than :data:`BELOW_FLOOR_CM`)."""
+    depth = np.maximum(floor - world[..., up].min(axis=1), 0.0) * cm
+    return {"max_depth_cm": float(depth.max()) if depth.size else 0.0,
+            "frames_below": int(np.count_nonzero(depth > BELOW_FLOOR_CM))}
+
+
+def contacts_summary(terms, root_scale: str) -> dict:
+    """The contact setup of a solve, for the report."""
+    tc = terms.target_contacts
+    return {"joints": list(tc.joints), "parts": list(tc.parts), "contact_frames": np.asarray(tc.contact).sum(0).tolist(),
+            "floor_m": float(tc.floor), "clearance_m": [float(c) for c in tc.clearance],
+            "leg_ratio": float(terms.leg_ratio), "root_scale": root_scale, "dropped_source_joints": list(terms.dropped)}
