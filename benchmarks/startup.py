@@ -82,20 +82,21 @@ def imported(cli_args: list[str], env: dict | None = None) -> list[str]:
     return json.loads(line.split(" ", 1)[1].replace("'", '"'))
 
 
-def import_breakdown(cli_args: list[str], env: dict, runs: int = 3) -> dict[str, float]:
-    """Seconds of import (self times) by top-level package, the least of ``runs`` ``-X importtime`` runs."""
-    least: dict[str, float] = {}
+def import_breakdown(cli_args: list[str], trees: dict[str, dict], runs: int = 3) -> dict[str, dict[str, float]]:
+    """Per tree: seconds of import (self times) by top-level package, the least of ``runs``
+    ``-X importtime`` runs (the trees taking turns)."""
+    least: dict[str, dict[str, float]] = {label: {} for label in trees}
     for _ in range(runs):
-        done = subprocess.run([PYTHON, "-X", "importtime", "-c", CLI, *cli_args], capture_output=True, text=True,
-                              env=env, cwd=tempfile.gettempdir())
-        totals: dict[str, float] = {}
-        for line in done.stderr.splitlines():
-            if line.startswith("import time:") and "|" in line and not line.rstrip().endswith("package"):
-                self_us, _, name = (part.strip() for part in line.removeprefix("import time:").split("|"))
-                top = name.split(".")[0]
-                totals[top] = totals.get(top, 0.0) + int(self_us) / 1e6
-        least = {k: min(v, least.get(k, v)) for k, v in totals.items()} | {k: v for k, v in least.items()
-                                                                           if k not in totals}
+        for label, env in trees.items():
+            done = subprocess.run([PYTHON, "-X", "importtime", "-c", CLI, *cli_args], capture_output=True, text=True,
+                                  env=env, cwd=tempfile.gettempdir())
+            totals: dict[str, float] = {}
+            for line in done.stderr.splitlines():
+                if line.startswith("import time:") and "|" in line and not line.rstrip().endswith("package"):
+                    self_us, _, name = (part.strip() for part in line.removeprefix("import time:").split("|"))
+                    top = name.split(".")[0]
+                    totals[top] = totals.get(top, 0.0) + int(self_us) / 1e6
+            least[label] = {k: min(v, least[label].get(k, v)) for k, v in totals.items()}
     return least
 
 
@@ -135,8 +136,7 @@ def main() -> None:
             for label, env in trees.items():
                 if label + name in measured:
                     results[label + name] = {**measured[label + name], "imports": imported(cli_args, env)}
-        breakdown = {label: import_breakdown(cases["usdmotion convert 5000 frames -> .usdc"], env)
-                     for label, env in trees.items()}
+        breakdown = import_breakdown(cases["usdmotion convert 5000 frames -> .usdc"], trees)
     base = results["python -c pass"]["median_s"]
     rows = [[name, f"{r['median_s']:.3f}", f"{r['min_s']:.3f}", f"{r['median_s'] / base:.1f}x", f"{r['cpu_median_s']:.3f}",
              " ".join(r.get("imports", []))] for name, r in results.items()]

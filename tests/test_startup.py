@@ -57,3 +57,12 @@ def test_help_lists_every_command():
 
 def test_the_check_sees_a_heavy_import_where_a_command_needs_one():
     assert "scipy.signal" in imported("analyze", str(WALK), "--units", "asf", "--frames", "1:")
+
+
+def test_importing_the_renderer_loads_no_gl_video_or_usd_library():
+    # render/ imports its light modules at the top; pyrender/OpenGL, PyAV, pxr and SciPy load when used
+    code = ("import sys, usdmotion.render, usdmotion.render.views, usdmotion.render.strobe\n"
+            "print(sorted(m for m in ('pyrender', 'OpenGL', 'av', 'pxr', 'scipy', 'jax', 'matplotlib') if m in sys.modules))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "[]"

@@ -24,7 +24,10 @@ import numpy as np
 from usdmotion.errors import UsdMotionError
 from usdmotion.io.atomic import atomic_output
 from usdmotion.motion import Motion
+from usdmotion.ops.analyse.measures import bend_angles, bend_triples
+from usdmotion.ops.segment.roles import find_roles
 from usdmotion.render.output import is_video
+from usdmotion.render.overlay import _font
 
 ROLE_WORDS = ("knee", "elbow", "hip", "shoulder", "ankle", "wrist")
 COLORS = ((255, 214, 10), (0, 200, 255), (120, 255, 120), (255, 120, 220))
@@ -49,9 +52,6 @@ def parse_angle(motion: Motion, text: str) -> AngleSpec:
         UsdMotionError: an unknown name, a joint that is not in the motion, or a joint
             without a defined bend (a root, a leaf, a branching joint).
     """
-    from usdmotion.ops.analyse.measures import bend_triples
-    from usdmotion.ops.segment.roles import find_roles
-
     text = text.strip()
     if "," in text:
         names = [n.strip() for n in text.split(",")]
@@ -88,8 +88,6 @@ def angle_values(specs: list[AngleSpec], positions: np.ndarray, up: np.ndarray) 
     Bends through :func:`usdmotion.ops.analyse.measures.bend_angles` (analyze's ``bend``); the trunk
     as the angle between root → chest and ``up (3,)``.
     """
-    from usdmotion.ops.analyse.measures import bend_angles
-
     out = np.empty((positions.shape[0], len(specs)))
     bends = [k for k, s in enumerate(specs) if not s.trunk]
     if bends:
@@ -128,8 +126,6 @@ class AngleOverlay:
         label already placed); then only the rectangle holding all arcs and labels is
         converted for Pillow (a 720p frame costs a few milliseconds less)."""
         from PIL import Image, ImageDraw
-
-        from usdmotion.render.overlay import _font
 
         height, width = image.shape[:2]
         probe = ImageDraw.Draw(Image.new("RGB", (1, 1)))

@@ -25,6 +25,9 @@ import numpy as np
 
 from usdmotion.errors import UsdMotionError
 from usdmotion.motion import Motion
+from usdmotion.ops.edit.align import subsequence_dtw, warp_from_path
+from usdmotion.ops.segment.detect import bone_angles
+from usdmotion.ops.segment.roles import find_roles
 
 ALIGN_HELP = "start, time (DTW on bone angles) or frame:N,M"
 
@@ -67,9 +70,6 @@ def dtw_frames(motion: Motion, other: Motion) -> tuple[np.ndarray, np.ndarray]:
     """Other take's frame ``(F,)`` matched to every frame of ``motion`` by DTW on the
     bone-angle feature (both at the main take's rate), and the smooth warp ``(F,)`` it was
     snapped from (for the local playback rate)."""
-    from usdmotion.ops.edit.align import subsequence_dtw, warp_from_path
-    from usdmotion.ops.segment.detect import bone_angles
-
     try:
         a, b = bone_angles(motion), bone_angles(other)
     except UsdMotionError as exc:
@@ -121,8 +121,6 @@ def align_takes(motion: Motion, other: Motion, frames: np.ndarray, times: np.nda
 def _match_pose(motion: Motion, other: Motion, f: int, g: int, joints_of) -> tuple[np.ndarray, np.ndarray]:
     """Turn about Y and floor shift putting ``other``'s root and heading at frame ``g``
     onto ``motion``'s at frame ``f``."""
-    from usdmotion.ops.segment.roles import find_roles
-
     def root_and_heading(take: Motion, frame: int):
         roles = find_roles(take)
         p = joints_of(take, np.array([frame]))[0]

@@ -19,6 +19,8 @@ import os
 
 import numpy as np
 
+from usdmotion.errors import UsdMotionError
+
 _MSAA = {"samples": 0}
 
 
@@ -59,7 +61,6 @@ def offscreen_renderer(width: int, height: int, msaa: int = 0, fxaa: bool = True
     renderer = pyrender.OffscreenRenderer(width, height)
     most = int(GL.glGetIntegerv(GL.GL_MAX_SAMPLES))
     if msaa > most:  # llvmpipe offers 4
-        from usdmotion.errors import UsdMotionError
 
         name = GL.glGetString(GL.GL_RENDERER).decode(errors="replace")
         renderer.delete()

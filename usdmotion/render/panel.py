@@ -17,6 +17,10 @@ import numpy as np
 
 from usdmotion.errors import UsdMotionError
 from usdmotion.motion import Motion
+from usdmotion.ops.analyse import analyse
+from usdmotion.render.angles import angle_values, parse_angle
+from usdmotion.render.overlay import _font
+from usdmotion.render.space import render_joints
 
 KINDS = {"angle": "deg", "speed": "m/s"}
 CURSOR = (220, 30, 30)
@@ -52,14 +56,11 @@ def parse_panel(text: str) -> list[tuple[str, str]]:
 
 def panel_series(motion: Motion, items: list[tuple[str, str]], frames: np.ndarray) -> list[Series]:
     """The values of every series at the output ``frames (N,)``."""
-    from usdmotion.render.angles import angle_values, parse_angle
-
     out = []
     kin = None
     for kind, name in items:
         if kind == "angle":
             spec = parse_angle(motion, name)
-            from usdmotion.render.space import render_joints
 
             values = angle_values([spec], render_joints(motion, frames), np.array([0.0, 1.0, 0.0]))[:, 0]
             out.append(Series(f"{spec.name} (deg)", "deg", values))
@@ -69,8 +70,6 @@ def panel_series(motion: Motion, items: list[tuple[str, str]], frames: np.ndarra
             except KeyError as exc:
                 raise UsdMotionError(f"--panel speed:{name}: {exc.args[0]}") from None
             if kin is None:
-                from usdmotion.ops.analyse import analyse
-
                 if motion.n_frames < 2:
                     raise UsdMotionError("--panel speed needs at least 2 frames")
                 kin = analyse(motion)
@@ -91,8 +90,6 @@ class PlotStrip:
                  cursor_times: np.ndarray | None = None):
         """``series`` sampled at ``times (M,)`` s; the cursor at ``cursor_times (N,)`` s (default: ``times``)."""
         from PIL import Image, ImageDraw
-
-        from usdmotion.render.overlay import _font
 
         self.times = times
         font = _font(max(10, height // (7 * len(series)) if len(series) > 1 else height // 8))

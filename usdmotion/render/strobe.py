@@ -17,7 +17,15 @@ import numpy as np
 
 from usdmotion.errors import OutputError, UsdMotionError
 from usdmotion.io.atomic import atomic_output
+from usdmotion.kinematics import fk_arrays, local_translations
 from usdmotion.motion import Motion
+from usdmotion.render import output_frames, plan_render
+from usdmotion.render.camera import load_presets, preset_track, project
+from usdmotion.render.gl import import_pyrender, offscreen_renderer, render_rgb
+from usdmotion.render.overlay import draw_text
+from usdmotion.render.scene import COLORS, add_lights, grid_mesh, material, to_render_space
+from usdmotion.render.space import render_joints
+from usdmotion.skin import body_size, build_body, lbs, skinning_matrices
 
 STILL_EXTENSIONS = (".png", ".jpg", ".jpeg")
 _EVERY = re.compile(r"^\s*(?P<value>[0-9]*\.?[0-9]+)\s*(?P<unit>s|ms|f|frames?)?\s*$", re.IGNORECASE)
@@ -68,8 +76,6 @@ def render_strobe(motion: Motion, output: str | Path, options, count: int | None
     """Render the stroboscope still of ``motion`` to ``output``; returns its source frames ``(N,)``."""
     import dataclasses
 
-    from usdmotion.render import output_frames, plan_render
-
     output = Path(output)
     check_still(output)
     rendered, _, _ = output_frames(motion, options)
@@ -89,9 +95,6 @@ def render_strobe(motion: Motion, output: str | Path, options, count: int | None
 
 def fixed_camera(motion: Motion, frames: np.ndarray, options, pad: float):
     """The preset camera of ``options.camera`` held fixed, framing the joints at ``frames``."""
-    from usdmotion.render.space import render_joints
-    from usdmotion.render.camera import load_presets, preset_track
-
     presets = load_presets()
     if options.camera not in presets:
         return None
@@ -102,11 +105,6 @@ def fixed_camera(motion: Motion, frames: np.ndarray, options, pad: float):
 
 
 def _draw(motion: Motion, frames: np.ndarray, plan, options) -> np.ndarray:
-    from usdmotion.kinematics import fk_arrays, local_translations
-    from usdmotion.render.gl import import_pyrender, offscreen_renderer, render_rgb
-    from usdmotion.render.scene import COLORS, add_lights, grid_mesh, material, to_render_space
-    from usdmotion.skin import body_size, build_body, lbs, skinning_matrices
-
     pyrender = import_pyrender()
     import trimesh
 
@@ -139,8 +137,6 @@ def _draw(motion: Motion, frames: np.ndarray, plan, options) -> np.ndarray:
     finally:
         renderer.delete()
     if options.overlay:
-        from usdmotion.render.overlay import draw_text
-
         seconds = (frames[-1] - frames[0]) / motion.fps
         step = seconds / max(len(frames) - 1, 1)
         draw_text(image, [options.labels[0], f"frames {frames[0]}-{frames[-1]}: {len(frames)} poses "
@@ -151,10 +147,6 @@ def _draw(motion: Motion, frames: np.ndarray, plan, options) -> np.ndarray:
 
 def projected_roots(motion: Motion, frames: np.ndarray, options) -> np.ndarray:
     """Pixel positions ``(N, 2)`` of the root at ``frames`` in the still (for tests, checks)."""
-    from usdmotion.render.space import render_joints
-    from usdmotion.render.camera import project
-    from usdmotion.skin import body_size
-
     camera = fixed_camera(motion, frames, options, 0.08 * body_size(motion) * motion.meters_per_unit)
     return project(render_joints(motion, frames)[:, 0], camera.poses[-1], camera.yfov, options.width, options.height)
 

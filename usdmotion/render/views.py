@@ -6,16 +6,21 @@ import time
 
 import numpy as np
 
+from usdmotion.body_parts import NO_BODY, body_groups
 from usdmotion.errors import UsdMotionError
 from usdmotion.kinematics import fk_arrays, local_translations
 from usdmotion.motion import Motion
-from usdmotion.render.gl import DynamicMesh, import_pyrender, offscreen_renderer, render_rgb
+from usdmotion.render.angles import AngleOverlay, angle_values, parse_angle
+from usdmotion.render.camera import forward_direction, project_frames
 from usdmotion.render.compare import clock_text
+from usdmotion.render.gl import DynamicMesh, import_pyrender, offscreen_renderer, render_rgb
 from usdmotion.render.overlay import draw_text
+from usdmotion.render.panel import PlotStrip, panel_series, parse_panel, strip_height
+from usdmotion.render.shadow import ContactShadow
+from usdmotion.skin import body_size, build_body, centre_of_mass, lbs, skinning_matrices
+from usdmotion.skin_stage import stage_body
 from usdmotion.render.scene import (COLORS, StickFigure, add_lights, grid_mesh, material, to_render_space,
                                     tube_mesh)
-from usdmotion.body_parts import NO_BODY, body_groups
-from usdmotion.skin import body_size, build_body, centre_of_mass, lbs, skinning_matrices
 
 _UP_Z = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 
@@ -26,8 +31,6 @@ def choose_body(motion: Motion, which: str, resolution: int):
     if which not in ("auto", "stage", "generated"):
         raise UsdMotionError(f"--body must be auto, stage or generated, got {which!r}")
     if which != "generated" and motion.meshes:
-        from usdmotion.skin_stage import stage_body
-
         body = stage_body(motion)
         if body is not None:
             return body
@@ -123,8 +126,6 @@ class Views:
 
     def _contact_shadow(self):
         """The :class:`~usdmotion.render.shadow.ContactShadow` under the main body (None: no body)."""
-        from usdmotion.render.shadow import ContactShadow
-
         main = self.actors[0]
         if main.body is None:
             return None
@@ -135,8 +136,6 @@ class Views:
 
     def _plot_strip(self, motion: Motion):
         """The ``--panel`` :class:`~usdmotion.render.panel.PlotStrip`: curves at every source frame."""
-        from usdmotion.render.panel import PlotStrip, panel_series, parse_panel, strip_height
-
         plan, options = self.plan, self.options
         items = parse_panel(options.panel)
         every = np.arange(plan.frames.min(), plan.frames.max() + 1)
@@ -154,9 +153,6 @@ class Views:
 
     def _angles(self, motion: Motion):
         """The :class:`~usdmotion.render.angles.AngleOverlay` of ``--angle`` on the main view."""
-        from usdmotion.render.angles import AngleOverlay, angle_values, parse_angle
-        from usdmotion.render.camera import project_frames
-
         plan = self.plan
         specs = [parse_angle(motion, text) for text in self.options.angles]
         joints = to_render_space(fk_arrays(motion.rotations[plan.frames], self.actors[0].local_t[plan.frames],
@@ -175,8 +171,6 @@ class Views:
         return scene
 
     def _add_static(self, motion: Motion, other: Motion | None) -> None:
-        from usdmotion.render.camera import forward_direction
-
         plan, options = self.plan, self.options
         main = self.actors[0]
         main.prepare(np.arange(min(len(plan.frames), 1)))
