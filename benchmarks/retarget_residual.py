@@ -21,8 +21,8 @@ joints, ``benchmarks/retarget.py``):
   at the best-found rotations);
 * **per removed joint** (``--no-groups`` skips it): the same take with one group of the
   list kept (e.g. LowerBack back in the rig); floor(list) − floor(list without the group),
-  per frame, is what removing that group costs. The groups' costs need not add up exactly
-  (removals interact), the table shows their sum.
+  per frame, is what removing that group costs. The costs do not add up: removals interact
+  (keeping either LowerBack or the hip joints frees the same hip triangle).
 
 Prints tables, writes ``benchmarks/results/retarget_residual.json`` and a PNG of loss per
 frame (shipped vs best found, and each group's floor cost).
@@ -254,8 +254,6 @@ def main(argv=None) -> int:
         for label in GROUPS:
             table.add_row(label, *(f"{100 * r['group_floor_cost'][label]['over_copied']:.3f} % "
                                    f"({r['group_floor_cost'][label]['share_of_floor']:.0%})" for r in rows))
-        table.add_row("sum", *(f"{100 * sum(g['over_copied'] for g in r['group_floor_cost'].values()):.3f} %"
-                               for r in rows))
         console.print(table)
     plot(curves, args.plot)
     result = {"machine": {"python": platform.python_version(), "cpus": os.cpu_count(), "device": device_description(),
