@@ -154,9 +154,10 @@ def take(relative: str, rounds: int, groups: bool) -> tuple[dict, dict]:
     r = retarget(motion, remove=remove, source_path=relative)  # the shipped command, as benchmarks/retarget.py
     began = time.perf_counter()
     res = Residual(motion, remove, rounds, shipped=r)
+    loss = r.report["loss"]
     row = {"file": relative, "frames": motion.n_frames, "removed": remove,
-           "shipped_command": {"final_over_copied": r.report["loss"]["final_over_copied"],
-                               "final": r.report["loss"]["final"]["total"], "copied": r.report["loss"]["copied"]["total"],
+           "shipped_command": {"final_over_copied": loss["final_over_copied"],
+                               "final": loss["final"]["total"], "copied": loss["copied"]["total"],
                                "iterations": r.report["iterations_run"],
                                "frames_per_second": r.report["frames_per_second_solve"]},
            "copied": res.copied, "shipped": float(res.shipped.sum()), "best_found": float(res.best.sum()),
