@@ -197,10 +197,18 @@ def plot(curves: dict, path: Path) -> None:
         ax.semilogy(seconds, np.maximum(c["shipped"], 1e-9), color="tab:red", lw=1.4, label="shipped solve")
         ax.semilogy(seconds, np.maximum(c["best"], 1e-9), color="black", lw=0.8, ls="--",
                     label="best found (floor)")
-        for (label, cost), colour in zip(c["groups"].items(), plt.cm.tab10(np.linspace(0, 1, 10))[1:]):
+        merged: dict = {}  # groups with the same cost (keeping either frees the same joint) share a curve
+        for label, cost in c["groups"].items():
+            same = next((k for k, v in merged.items() if np.abs(v - cost).sum() < 0.01 * np.abs(cost).sum()), None)
+            if same is None:
+                merged[label] = cost
+            else:
+                merged[f"{same} or {label}"] = merged.pop(same)
+        for (label, cost), colour in zip(merged.items(), ("tab:blue", "tab:green", "tab:orange",
+                                                               "tab:purple", "tab:brown", "tab:pink")):
             if cost.sum() > 0.02 * c["best"].sum():
                 ax.semilogy(seconds, np.maximum(cost, 1e-9), color=colour, lw=0.7, alpha=0.8,
-                            label=f"cost of removing {label}")
+                            label=f"floor cost of removing {label}")
         ax.set_title(name, fontsize=10)
         ax.set_ylabel("loss per frame (ASF units²)")
         ax.set_ylim(bottom=max(1e-5, 0.3 * float(np.percentile(c["best"], 1))))
