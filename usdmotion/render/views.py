@@ -117,6 +117,7 @@ class Views:
             for mesh in actor.nodes:
                 scenes[i if self.side else 0].add(mesh)
         self.scenes = scenes
+        self.view_grids = []  # the grid lines seen by each view (--layout)
         self._add_static(motion, other)
         self.angles = self._angles(motion) if options.angles else None
         self.shadow = self._contact_shadow() if options.contact_shadow else None
@@ -185,10 +186,15 @@ class Views:
             lo = joints.reshape(-1, 3).min(axis=0) - margin
             hi = joints.reshape(-1, 3).max(axis=0) + margin
             pixel = distance * 2 * np.tan(plan.camera.yfov / 2) / plan.panel[1]  # metres per pixel at the body
-            static += grid_mesh(lo, hi, plan.ground, options.grid_scale, max(0.0025 * distance, 1.4 * pixel, 0.004),
-                                solid=options.shadows,  # a floor to receive the shadows
-                                eye=np.median(plan.camera.poses[:, :3, 3], axis=0),
-                                pixel_angle=2 * np.tan(plan.camera.yfov / 2) / plan.panel[1])
+            # the lines' widths follow the distance from the camera: one grid per view of a layout
+            for k, camera in enumerate(plan.cameras or (plan.camera,)):
+                meshes = grid_mesh(lo, hi, plan.ground, options.grid_scale,
+                                   max(0.0025 * distance, 1.4 * pixel, 0.004),
+                                   solid=options.shadows and k == 0,  # a floor to receive the shadows
+                                   eye=np.median(camera.poses[:, :3, 3], axis=0),
+                                   pixel_angle=2 * np.tan(camera.yfov / 2) / plan.panel[1])
+                self.view_grids.append(meshes[-1])
+                static += meshes
         for k, name in enumerate(options.traces):
             path = self._trace_path(motion, name, joints)
             color = COLORS["traces"][k % len(COLORS["traces"])]
@@ -230,7 +236,9 @@ class Views:
                 images = []
                 if self.view_nodes:
                     scene = self.scenes[0]
-                    for node, cam in zip(self.view_nodes, plan.cameras):
+                    for view, (node, cam) in enumerate(zip(self.view_nodes, plan.cameras)):
+                        for k, grid in enumerate(self.view_grids):
+                            grid.is_visible = k == view
                         scene.main_camera_node = node
                         scene.set_pose(node, cam.poses[i])
                         images.append(render_rgb(self.renderer, scene, options.shadows))
