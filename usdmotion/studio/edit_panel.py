@@ -21,7 +21,7 @@ from starlette.routing import Route
 
 from usdmotion.studio import takes
 from usdmotion.studio.errors import StudioError
-from usdmotion.studio.jobs import Kept, error_text, json_body, library_name
+from usdmotion.studio.jobs import Kept, error_text, json_body, saved, submit_save
 
 #: Edited motions kept for the page (positions and plots are fetched after the preview).
 KEEP_PREVIEWS = 6
@@ -175,11 +175,6 @@ class EditPanel:
 
         body = await json_body(request)
         entry, ops, others = self.operations(body)
-        fmt = body.get("format", "bvh")
-        if fmt not in SAVE_FORMATS:
-            raise StudioError(400, f"format must be one of {', '.join(SAVE_FORMATS)}")
-        jobs = self.api.jobs
-        path = jobs.output_path(library_name(self.api.library, self.api.out, entry), "edit", fmt)
 
         def work(progress, outputs):
             progress(0, 2, "editing")
@@ -189,18 +184,7 @@ class EditPanel:
             progress(2, 2, "saved")
             return saved(self.api, outputs[0])
 
-        job = jobs.submit("edit", [path], work, names={str(entry.path): entry.name})
-        return JSONResponse({"job": job.id, "output": jobs.shown(path)})
-
-
-def saved(api, path) -> dict:
-    """What a job that wrote ``path`` answers: the path as shown and its library id (the
-    output folder is listed as a root, so the new file is in the library)."""
-    path = path.resolve()
-    for index, root in enumerate(api.library.roots):
-        if root.is_dir() and path.is_relative_to(root):
-            return {"output": api.jobs.shown(path), "id": f"{index}/{path.relative_to(root).as_posix()}"}
-    return {"output": api.jobs.shown(path), "id": None}
+        return JSONResponse(submit_save(self.api, "edit", entry, "edit", body.get("format", "bvh"), SAVE_FORMATS, work))
 
 
 def routes(api) -> list[Route]:

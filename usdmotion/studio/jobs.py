@@ -271,6 +271,26 @@ def library_name(library, out: Path | None, entry) -> str:
     return f"{(root.parent if root.is_file() else root).name}/{rel}"
 
 
+def saved(api, path) -> dict:
+    """What a job that wrote ``path`` answers: the path as shown and its library id (the
+    output folder is listed as a root, so the new file is in the library)."""
+    path = path.resolve()
+    for index, root in enumerate(api.library.roots):
+        if root.is_dir() and path.is_relative_to(root):
+            return {"output": api.jobs.shown(path), "id": f"{index}/{path.relative_to(root).as_posix()}"}
+    return {"output": api.jobs.shown(path), "id": None}
+
+def submit_save(api, kind: str, entry, suffix: str, fmt: str, formats: tuple[str, ...], work) -> dict:
+    """Save as through a job: ``fmt`` checked against ``formats``, the output named by
+    :meth:`Jobs.output_path` from ``entry`` (``<stem>.<suffix>.<fmt>`` in the output folder),
+    ``work(progress, outputs)`` run as the job; answers ``{"job", "output"}``."""
+    if fmt not in formats:
+        raise StudioError(400, f"format must be one of {', '.join(formats)}")
+    path = api.jobs.output_path(library_name(api.library, api.out, entry), suffix, fmt)
+    job = api.jobs.submit(kind, [path], work, names={str(entry.path): entry.name})
+    return {"job": job.id, "output": api.jobs.shown(path)}
+
+
 async def json_body(request, max_bytes: int = 64 * 1024) -> dict:
     """The request's JSON object (400 with one line if it is not one)."""
     import json

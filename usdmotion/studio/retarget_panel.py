@@ -19,8 +19,7 @@ from starlette.routing import Route
 
 from usdmotion.studio import takes
 from usdmotion.studio.errors import StudioError
-from usdmotion.studio.edit_panel import saved
-from usdmotion.studio.jobs import Kept, error_text, json_body, library_name
+from usdmotion.studio.jobs import Kept, error_text, json_body, saved, submit_save
 
 #: Retarget results kept for playing and saving.
 KEEP_RESULTS = 4
@@ -166,11 +165,6 @@ class RetargetPanel:
 
         body = await json_body(request)
         result, source, target, _ = self.result(str(body.get("key", "")))
-        fmt = body.get("format", "usda")
-        if fmt not in SAVE_FORMATS:
-            raise StudioError(400, f"format must be one of {', '.join(SAVE_FORMATS)}")
-        jobs = self.api.jobs
-        path = jobs.output_path(library_name(self.api.library, self.api.out, source), "retarget", fmt)
 
         def work(progress, outputs):
             progress(0, 1, f"writing {outputs[0].name}")
@@ -178,8 +172,8 @@ class RetargetPanel:
             progress(1, 1, "saved")
             return saved(self.api, outputs[0])
 
-        job = jobs.submit("retarget-save", [path], work, names={str(source.path): source.name})
-        return JSONResponse({"job": job.id, "output": jobs.shown(path)})
+        return JSONResponse(submit_save(self.api, "retarget-save", source, "retarget", body.get("format", "usda"),
+                                        SAVE_FORMATS, work))
 
 
 def joint_map(options: dict):

@@ -18,8 +18,7 @@ from starlette.responses import FileResponse, JSONResponse, Response
 from starlette.routing import Route
 
 from usdmotion.studio.errors import StudioError
-from usdmotion.studio.edit_panel import saved
-from usdmotion.studio.jobs import json_body, library_name
+from usdmotion.studio.jobs import json_body, library_name, saved
 
 #: The Studio's camera modes → the renderer's presets (the user's own orbit has no preset: side).
 CAMERAS = {"side": "side", "front": "front", "top": "top", "follow": "follow", "orbit": "side"}
