@@ -67,35 +67,40 @@ def read_samples(attr, times: np.ndarray, n: int, width: int, path: Path) -> np.
 
     out = np.empty((times.size, n, width), np.float32)
     query = Usd.AttributeQuery(attr)
-    i = 0
-    try:  # the samples' buffers straight into ``out``: no Python statement per sample but the copy
-        for i, value in enumerate(map(np.asarray, map(query.Get, times.tolist()))):
-            if value.shape != (n, width):
-                break
-            out[i] = value
-        else:
-            i = None
-    except (ValueError, TypeError):
-        pass
-    if i is not None:
-        raise _first_bad_sample(query, times, n, width, path, where)
+    if not _copy_samples(query, times, out):
+        _raise_first_bad_sample(query, times, n, width, path, where)
     _check_finite(out, path, where, times)
     return out
 
 
-def _first_bad_sample(query, times: np.ndarray, n: int, width: int, path: Path, where: str) -> UsdReadError:
-    """The error naming the first sample at ``times`` that is not ``n`` ``width``-vectors
+def _copy_samples(query, times: np.ndarray, out: np.ndarray) -> bool:
+    """Copy the value of ``query`` at each of ``times (T,)`` into ``out (T, n, width)`` through the
+    buffer protocol (nothing per sample in Python but a shape check and the copy); ``False`` at
+    the first value that is not ``(n, width)`` numbers."""
+    shape = out.shape[1:]
+    try:
+        for i, value in enumerate(map(np.asarray, map(query.Get, times.tolist()))):
+            if value.shape != shape:
+                return False
+            out[i] = value
+    except (ValueError, TypeError):
+        return False
+    return True
+
+
+def _raise_first_bad_sample(query, times: np.ndarray, n: int, width: int, path: Path, where: str) -> None:
+    """Raise the error naming the first sample at ``times`` that is not ``n`` ``width``-vectors
     (the slow, exact scan behind :func:`read_samples`'s bulk copy)."""
     for t in times.tolist():
         value = query.Get(t)
         if value is None or len(value) != n:
-            return UsdReadError(path, f"{where} at time {t:g} has {0 if value is None else len(value)} "
-                                      f"values for {n} joints")
+            raise UsdReadError(path, f"{where} at time {t:g} has {0 if value is None else len(value)} "
+                                     f"values for {n} joints")
         try:
             np.asarray(value, np.float32).reshape(n, width)
         except (ValueError, TypeError) as exc:
-            return UsdReadError(path, f"{where} at time {t:g} is not an array of {width}-vectors ({exc})")
-    return UsdReadError(path, f"{where}: the time samples changed while they were read")
+            raise UsdReadError(path, f"{where} at time {t:g} is not an array of {width}-vectors ({exc})") from None
+    raise UsdReadError(path, f"{where}: its time samples cannot be read as arrays of {width}-vectors")
 
 
 def _rows(value, n: int, width: int, path: Path, where: str, t) -> np.ndarray:
