@@ -56,16 +56,16 @@ def frame_times(anim, path: Path, resample: bool = False) -> tuple[np.ndarray, f
     return times[0] + step * np.arange(count), step
 
 
-def read_samples(attr, times: np.ndarray, n: int, width: int, path: Path) -> np.ndarray:
-    """``attr`` at every time in ``times`` as float32 ``(max(T, 1), n, width)``, checked for
-    length and finiteness; read once and broadcast when it has no time samples."""
+def read_samples(attr, times: np.ndarray, n: int, width: int, path: Path, dtype=np.float32) -> np.ndarray:
+    """``attr`` at every time in ``times`` as ``(max(T, 1), n, width)`` of ``dtype``, checked for
+    length and finiteness; read once and broadcast (float32, read-only) when it has no time samples."""
     where = str(attr.GetPath())
     if attr.GetNumTimeSamples() == 0 or times.size == 0:
         out = _rows(attr.Get(), n, width, path, where, None)
         return np.broadcast_to(out, (max(times.size, 1), n, width))
     from pxr import Usd
 
-    out = np.empty((times.size, n, width), np.float32)
+    out = np.empty((times.size, n, width), dtype)
     query = Usd.AttributeQuery(attr)
     if not _copy_samples(query, times, out):
         _raise_first_bad_sample(query, times, n, width, path, where)
@@ -152,22 +152,20 @@ def animation_arrays(anim, tokens: list[str], times: np.ndarray, rest_rotations:
         if not attr.HasValue():
             raise UsdReadError(path, f"{anim.GetPath()}: the SkelAnimation has no {name} "
                                      "(usd-core would show the rest pose)")
-    quats = read_samples(anim.GetRotationsAttr(), times, len(anim_joints), 4, path)
-    quats = quats if same_order else quats[:, src]
-    wxyz = np.empty(quats.shape, np.float64)  # (x, y, z, w) → (w, x, y, z) and float64 in one pass
-    wxyz[..., 0], wxyz[..., 1:] = quats[..., 3], quats[..., :3]
+    quats = read_samples(anim.GetRotationsAttr(), times, len(anim_joints), 4, path, np.float64)
+    wxyz = _wxyz(quats if same_order else quats[:, src])
     del quats
-    norms = np.sqrt(np.einsum("...i,...i->...", wxyz, wxyz))
-    off_unit = np.abs(norms - 1.0, out=np.empty_like(norms))  # norms kept for the division below
-    worst = float(off_unit.max(initial=0.0))
+    norms = np.einsum("...i,...i->...", wxyz, wxyz)
+    np.sqrt(norms, out=norms)
+    worst = max(float(norms.max()) - 1.0, 1.0 - float(norms.min())) if norms.size else 0.0  # max |‖q‖ - 1|
     if worst > UNIT_TOL:
-        f, j = np.argwhere(off_unit > UNIT_TOL)[0]
+        f, j = np.argwhere(np.abs(norms - 1.0) > UNIT_TOL)[0]
         at = f" at time {times[f]:g}" if times.size else ""
         raise UsdReadError(path, f"{anim.GetRotationsAttr().GetPath()}{at}: rotation of joint "
                                  f"{anim_joints[int(src[j])]} has length {norms[f, j]:.6g}, not a unit quaternion")
     if worst > 1e-6:
         wxyz /= norms[..., None]
-    del norms, off_unit
+    del norms
     shifts = read_samples(anim.GetTranslationsAttr(), times, len(anim_joints), 3, path)
     if same_order:
         rotations, translations = wxyz, shifts  # float32 as read: float64 only of what the Motion keeps
@@ -178,6 +176,21 @@ def animation_arrays(anim, tokens: list[str], times: np.ndarray, rest_rotations:
         translations[:, dst] = shifts[:, src]
     _check_scales(anim, times, len(anim_joints), path)
     return rotations, translations
+
+
+def _wxyz(xyzw: np.ndarray, block: int = 8192) -> np.ndarray:
+    """Float64 wxyz ``(T, J, 4)`` from xyzw quaternions: reordered in place, ``block`` frames at
+    a time, when ``xyzw`` is a writable float64 array (no second copy of a long take)."""
+    if not (xyzw.dtype == np.float64 and xyzw.flags.writeable and xyzw.flags.c_contiguous):
+        out = np.empty(xyzw.shape, np.float64)
+        out[..., 0], out[..., 1:] = xyzw[..., 3], xyzw[..., :3]
+        return out
+    for start in range(0, xyzw.shape[0], block):
+        part = xyzw[start:start + block]
+        w = part[..., 3].copy()
+        part[..., 1:] = part[..., :3].copy()
+        part[..., 0] = w
+    return xyzw
 
 
 def _check_scales(anim, times: np.ndarray, n: int, path: Path) -> None:
