@@ -10,7 +10,11 @@ to arrays in the target's frame and units (the solver's, before centring):
   source bones scaled to target units);
 * with ``root_scale="legs"`` the root trajectory is scaled by ``k`` about the hips'
   ground point in the first frame (height above the floor scaled too) and every other
-  target moves with it, so strides fit the target's legs;
+  target moves with it, so strides fit the target's legs; the targets of the **legs**
+  (mapped joints on the chains from the hips to the contact joints, and below those)
+  are also scaled by ``k`` about the hips, so a planted foot's own target lies on its
+  fixed point instead of ``(k − 1)`` times the hip height above the floor (the two
+  terms then pull the foot apart and the stance foot drifts between them);
 * during every contact interval the target contact joint is pulled to one fixed point:
   horizontally the mean of the source joint's position over the interval (scaled about
   the same ground point when the root is), vertically its planted level
@@ -19,7 +23,11 @@ to arrays in the target's frame and units (the solver's, before centring):
 * between contacts the contact joint follows its (root-scaled) source position plus an
   offset blended linearly from the end of one contact's fixed point to the start of the
   next (footskate clean-up, Kovar et al. 2002), at :data:`SWING_SHARE` of the weight, so
-  it never jumps onto or off a fixed point.
+  it never jumps onto or off a fixed point;
+* the weight itself ramps between the swing share and full weight over :data:`RAMP_S`
+  seconds *outside* every contact (full weight on every contact frame): a weight that
+  switches in one frame moves the whole compromise between the terms in one frame, which
+  showed as steps of several degrees per frame in the legs and the upper body.
 
 Weights (per unit² of target length; the mapped joints weigh 1): :data:`CONTACT_WEIGHT`
 for a planted joint, :data:`FLOOR_WEIGHT` per unit² below the floor.
@@ -31,7 +39,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from usdmotion.ops.contacts.detect import UP_INDEX, FootContacts
+from usdmotion.kinematics import fk_arrays
+from usdmotion.ops.contacts.detect import UP_INDEX, FootContacts, runs
 from usdmotion.ops.retarget.hierarchy import ancestor_matrix
 
 #: Weight of a planted contact joint's distance to its fixed point (mapped joints: 1).
@@ -39,10 +48,19 @@ CONTACT_WEIGHT = 100.0
 #: Weight of a joint's depth below the floor (one-sided).
 FLOOR_WEIGHT = 1000.0
 ROOT_SCALES = ("off", "legs")
+#: Smallest height (m) above the floor at which a contact joint is planted.
+ABOVE_FLOOR_M = 0.001
 #: Between contacts the contact joint follows the source plus an offset blended from the
 #: end of one contact to the start of the next, with this share of the contact weight, so
 #: a foot never jumps onto or off its fixed point.
 SWING_SHARE = 0.1
+#: In the contact solve, the mapped joints above the legs weigh this share of their weight
+#: (see :func:`body_share`).
+BODY_SHARE = 0.2
+#: Seconds over which a contact weight ramps from its swing share to full weight before a
+#: contact begins (and back after it ends): a step in weight moves the whole compromise
+#: between the terms in one frame (flips of the feet and the upper body).
+RAMP_S = 0.05
 
 
 @dataclass(frozen=True, eq=False)
@@ -51,12 +69,15 @@ class ContactTerms:
 
     Attributes:
         joints: ``(C,)`` target contact joints.
-        weights: ``(F, C)`` weight per frame (:data:`CONTACT_WEIGHT` during contact, else 0).
-        targets: ``(F, C, 3)`` fixed point of each contact interval (0 outside contacts).
+        weights: ``(F, C)`` weight per frame (:data:`CONTACT_WEIGHT` during contact, ramped
+            down to :data:`SWING_SHARE` of it between contacts, see :func:`ramp`).
+        targets: ``(F, C, 3)`` fixed point of each contact interval, blended between them.
         floor: floor height on the target's up axis (target units).
         up: index of the up axis.
         leg_ratio: ``k``, target / source leg length.
-        shift: ``(F, 3)`` translation added to the source's targets (root scaling; zeros when off).
+        shift: ``(F, J, 3)`` translation added to each target joint's source position (root
+            and leg scaling; zeros when off).
+        root_shift: ``(F, 3)`` the root's part of it (what the anchor's translation moves by).
         target_contacts: the contacts restated for the target rig (indices, floor in metres,
             clearances ``k`` times the source's) — what the metrics of the result use.
         dropped: source contact joints no target joint follows.
@@ -69,6 +90,7 @@ class ContactTerms:
     up: int
     leg_ratio: float
     shift: np.ndarray
+    root_shift: np.ndarray
     target_contacts: FootContacts
     dropped: tuple[str, ...]
 
@@ -122,42 +144,138 @@ def contact_terms(setup, source, contacts: FootContacts, root_scale: str = "off"
     n_frames = setup.targets.shape[0]
     # source positions of the contact joints, target frame and units
     src_pos = _source_positions(setup, source, src_idx)
-    shift = np.zeros((n_frames, 3))
+    root_shift = np.zeros((n_frames, 3))
+    shift = np.zeros((n_frames, setup.rig.n_joints, 3))
     centre = _root_ground(setup, floor, up)
     kh = 1.0
     if root_scale == "legs":
         kh = k
-        shift = (k - 1.0) * (centre - centre[0] * _horizontal(up))
+        root_shift = (k - 1.0) * (centre - centre[0] * _horizontal(up))
+        shift[:] = root_shift[:, None]
+        legs = leg_joints(setup, joints)
+        hips = centre.copy()
+        hips[:, up] += floor
+        shift[:, legs] += (k - 1.0) * (setup.targets[:, legs] - hips[:, None])
     clearance = np.asarray(contacts.clearance)[keep] / source.meters_per_unit * s
-    level = floor + k * clearance  # (C,) planted level of each target contact joint
-    weights = np.zeros((n_frames, len(keep)))
+    # (C,) planted level of each target contact joint; a joint planted on the floor itself (the
+    # lowest one, clearance 0) is held a hair above it: the floor term is one-sided and soft
+    level = np.maximum(floor + k * clearance, floor + ABOVE_FLOOR_M / rig.meters_per_unit)
     targets = np.zeros((n_frames, len(keep), 3))
     origin = centre[0] * _horizontal(up)
-    for c, col in enumerate(keep):
-        scaled = origin + kh * (src_pos[:, c] - origin)  # the source joint, root-scaled
-        scaled[:, up] = floor + k * (src_pos[:, c, up] - floor)
-        intervals = contacts.intervals(col)
-        if not len(intervals):
-            continue
-        points = np.array([scaled[a:b].mean(axis=0) for a, b in intervals])
-        points[:, up] = level[c]
-        # offsets of the fixed points from the source at each contact's first and last frame,
-        # blended linearly over the frames between contacts (footskate clean-up)
-        keys = np.stack([intervals[:, 0], intervals[:, 1] - 1], axis=1).ravel()
-        offs = np.stack([points - scaled[intervals[:, 0]], points - scaled[intervals[:, 1] - 1]], axis=1)
-        offs = offs.reshape(-1, 3)
-        frames = np.arange(n_frames)
-        blended = np.stack([np.interp(frames, keys, offs[:, i]) for i in range(3)], axis=1)
-        targets[:, c] = scaled + blended
-        weights[:, c] = SWING_SHARE * contact_weight
-        for (a, b), point in zip(intervals, points):
-            targets[a:b, c] = point
-            weights[a:b, c] = contact_weight
+    contact = np.asarray(contacts.contact)[:, keep]
+    scaled = origin + kh * (src_pos - origin)  # (F, C, 3) the source joints, root-scaled
+    scaled[..., up] = floor + k * (src_pos[..., up] - floor)
+    planted = scaled.copy()  # during contact: the interval's mean horizontally, its level vertically
+    for c in range(len(keep)):
+        for a, b in runs(contact[:, c]):
+            planted[a:b, c] = scaled[a:b, c].mean(axis=0)
+    planted[..., up] = np.where(contact, level[None], planted[..., up])
+    planted = foot_length_apart(setup, joints, contact, planted, up)
+    # between contacts the offset from the source blends linearly from one contact's last
+    # frame to the next one's first (footskate clean-up)
+    frames = np.arange(n_frames)
+    for c in range(len(keep)):
+        on = np.flatnonzero(contact[:, c])
+        if on.size:
+            offset = planted[on, c] - scaled[on, c]
+            targets[:, c] = scaled[:, c] + np.stack([np.interp(frames, on, offset[:, i]) for i in range(3)], axis=1)
+    weights = contact_weight * ramp(contact, ramp_frames(source.fps))
     restated = replace(contacts, joints=tuple(rig.joint_names[j] for j in joints), indices=joints,
                        parts=tuple(contacts.parts[c] for c in keep), contact=np.asarray(contacts.contact)[:, keep],
                        floor=float(floor * rig.meters_per_unit), clearance=k * clearance * rig.meters_per_unit,
                        up=rig.up_axis)
-    return ContactTerms(joints, weights, targets, float(floor), up, float(k), shift, restated, dropped)
+    return ContactTerms(joints, weights, targets, float(floor), up, float(k), shift, root_shift, restated, dropped)
+
+
+def leg_chains(parents: np.ndarray, contact_joints: np.ndarray) -> np.ndarray:
+    """``(J,)`` bool: the contact joints, their parents and grandparents (toe, ankle, knee,
+    hip: the rotations that place a foot) and every joint below a contact joint."""
+    chain = np.zeros(len(parents), bool)
+    for j in contact_joints:
+        for _ in range(3):
+            if j < 0:
+                break
+            chain[j] = True
+            j = parents[j]
+    return chain | ancestor_matrix(parents)[contact_joints].any(axis=0)
+
+
+def body_share(setup, contact_joints: np.ndarray) -> np.ndarray:
+    """``(M,)`` factor on the weight of each mapped joint in the contact solve: 1 on the
+    :func:`leg_chains`, :data:`BODY_SHARE` above them. The body above the legs keeps the
+    plain solve's rotations (:func:`usdmotion.ops.retarget.rotation_terms.contact_prior_share`)
+    and rides on the root, so its positions should not hold the root back from where the
+    planted feet need it: with full weight they pulled the stance ankle millimetres off its
+    point wherever the leg was stretched, and turned small bones (fingers) after the targets."""
+    legs = leg_chains(setup.rig.parents, contact_joints)
+    return np.where(legs[setup.mapped], 1.0, BODY_SHARE)
+
+
+def foot_length_apart(setup, joints: np.ndarray, contact: np.ndarray, planted: np.ndarray, up: int) -> np.ndarray:
+    """``planted (F, C, 3)`` with every toe contact's fixed point moved along the line from
+    its ankle's fixed point (horizontally) to the distance the target's foot allows
+    between their planted levels.
+
+    Each fixed point is the mean of its own contact, and the toe's contact starts and ends
+    later than the ankle's, so the two means are rarely a foot's length apart (3–4 mm off
+    on the CMU walk): both held, the foot cannot lie on both and the stance foot drifts
+    between them. The ankle's point is kept; the toe's follows it."""
+    anc = ancestor_matrix(setup.rig.parents)
+    identity = np.zeros((setup.rig.n_joints, 4))
+    identity[:, 0] = 1.0
+    rest = fk_arrays(identity, setup.offsets, setup.rig.parents)[1]
+    planted = planted.copy()
+    for t, toe in enumerate(joints):
+        ankles = [a for a, j in enumerate(joints) if anc[j, toe]]
+        if not ankles:
+            continue
+        a = ankles[-1]  # the nearest contact joint above the toe
+        length = np.linalg.norm(rest[toe] - rest[joints[a]])
+        for start, stop in runs(contact[:, t]):
+            both = np.flatnonzero(contact[start:stop, a]) + start
+            if not both.size:
+                continue
+            ankle = planted[both[len(both) // 2], a]
+            apart = planted[start, t] - ankle
+            apart[up] = 0.0
+            rise = planted[start, t, up] - ankle[up]
+            norm = np.linalg.norm(apart)
+            if norm > 0 and length > abs(rise):
+                point = ankle + apart * (np.sqrt(length ** 2 - rise ** 2) / norm)
+                point[up] = planted[start, t, up]
+                planted[start:stop, t] = point
+    return planted
+
+
+def ramp_frames(fps: float) -> int:
+    """Frames over which a contact weight ramps between its swing share and full weight."""
+    return max(1, int(round(RAMP_S * fps)))
+
+
+def ramp(contact: np.ndarray, frames: int) -> np.ndarray:
+    """``(F, C)`` weight share per frame of the contact mask ``contact (F, C)``: 1 during
+    contact, :data:`SWING_SHARE` from ``frames`` frames away from every contact, and in
+    between a smoothstep in log space (``SWING_SHARE ** (1 − s(d))``, ``d`` the distance in
+    frames to the nearest contact frame), so the solution never jumps where a contact begins or ends."""
+    contact = np.asarray(contact, bool)
+    n = contact.shape[0]
+    idx = np.arange(n)[:, None]
+    far = n + frames + 1
+    last = np.maximum.accumulate(np.where(contact, idx, -far), axis=0)
+    nxt = np.minimum.accumulate(np.where(contact, idx, n + far)[::-1], axis=0)[::-1]
+    dist = np.minimum(idx - last, nxt - idx)
+    x = np.clip(1.0 - dist / (frames + 1.0), 0.0, 1.0)
+    return SWING_SHARE ** (1.0 - x * x * (3.0 - 2.0 * x))
+
+
+def leg_joints(setup, contact_joints: np.ndarray) -> np.ndarray:
+    """Mapped joints below the top mapped joint that are ancestors-or-self of a contact
+    joint or descendants of one (hip, knee, ankle, toe and their End Sites)."""
+    anc = ancestor_matrix(setup.rig.parents)
+    on_chain = (anc | np.eye(setup.rig.n_joints, dtype=bool))[:, contact_joints].any(axis=1)
+    below = anc[contact_joints].any(axis=0)
+    legs = (on_chain | below) & anc[setup.top]
+    return np.intersect1d(np.flatnonzero(legs), setup.mapped)
 
 
 def _horizontal(up: int) -> np.ndarray:

@@ -37,12 +37,12 @@ from usdmotion.ops.retarget.hierarchy import (Rig, RetargetError, UnitsMismatchE
                                      derive_rig, mapped_chains, rig_from_motion, source_bone_lengths)
 from usdmotion.ops.retarget import quality as retarget_quality
 from usdmotion.ops.retarget import report as retarget_report
-from usdmotion.ops.retarget.contact_terms import FLOOR_WEIGHT, ROOT_SCALES, contact_terms, moved_joints
+from usdmotion.ops.retarget.contact_terms import FLOOR_WEIGHT, ROOT_SCALES, body_share, contact_terms, moved_joints
 from usdmotion.ops.retarget.jointmap import JointMap, resolve_map
 from usdmotion.ops.retarget.losses import frame_losses
 from usdmotion.ops.retarget.problem import CONTACT_ITERATIONS, CONTACT_WARM_ITERATIONS, Problem
 from usdmotion.ops.retarget.aim import aim_init, identity_quats as _identity
-from usdmotion.ops.retarget.rotation_terms import smooth_scale
+from usdmotion.ops.retarget.rotation_terms import contact_prior_share, smooth_scale
 from usdmotion.ops.retarget.solve import solve
 from usdmotion.ops.retarget.unmapped import continuous_hemisphere, unmapped_rules
 from usdmotion.progress import Progress
@@ -328,6 +328,8 @@ def _problem(setup: Setup, terms=None, smooth: float = 0.0, prior: float = 0.0):
         extra["smooth"] = smooth * smooth_scale(setup)
     if prior > 0:
         extra["prior"] = prior * smooth_scale(setup)
+        if terms is not None:  # the contact solve: everything but the leg chains keeps the plain solve
+            extra["prior"] = extra["prior"] * contact_prior_share(setup, terms.joints)
     if terms is not None:
         extra.update(contact_joints=terms.joints, floor_joints=moved_joints(setup), up=terms.up,
                      floor_weight=FLOOR_WEIGHT)
@@ -405,8 +407,8 @@ def retarget(source: Motion, target: Motion | None = None, *, remove=(), add=(),
             contacts = detect_contacts(source, source=source_path)
         terms = contact_terms(setup, source, contacts, root_scale)
         if terms is not None:  # the root trajectory scaled: every target moves with it
-            setup.targets[:, setup.mapped] += terms.shift[:, None]
-            setup.translations[:, setup.anchor] += terms.shift
+            setup.targets[:, setup.mapped] += terms.shift[:, setup.mapped]
+            setup.translations[:, setup.anchor] += terms.root_shift
     if prior is None:
         prior = PRIOR if setup.mode == "target" and method == "lm" else 0.0
     rot_terms = (float(smooth), float(prior))
@@ -443,8 +445,8 @@ def _solve(setup: Setup, q0: np.ndarray, terms, rot_terms, method: str, iteratio
     weights = floor = None
     if terms is not None:
         targets = np.concatenate([targets, terms.targets - centre[:, None]], axis=1)
-        weights = np.concatenate([np.broadcast_to(problem.weights, (len(q0), len(problem.weights))), terms.weights],
-                                 axis=1)
+        mapped_w = problem.weights * body_share(setup, terms.joints)  # the body above the legs rides on the root
+        weights = np.concatenate([np.broadcast_to(mapped_w, (len(q0), len(mapped_w))), terms.weights], axis=1)
         floor = terms.floor - centre[:, terms.up]
     if terms is not None:  # warm start: a short plain solve, then the contacts move what they must
         plain = solve(_problem(setup, None, *rot_terms), q0, t0, targets[:, : len(setup.mapped)], method=method,
