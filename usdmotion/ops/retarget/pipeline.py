@@ -448,7 +448,7 @@ def _solve(setup: Setup, q0: np.ndarray, terms, rot_terms, method: str, iteratio
         mapped_w = problem.weights * body_share(setup, terms.joints)  # the body above the legs rides on the root
         weights = np.concatenate([np.broadcast_to(mapped_w, (len(q0), len(mapped_w))), terms.weights], axis=1)
         floor = terms.floor - centre[:, terms.up]
-    if terms is not None:  # warm start: a short plain solve, then the contacts move what they must
+    if terms is not None:  # warm start: the plain solve, then the contacts move what they must
         plain = solve(_problem(setup, None, *rot_terms), q0, t0, targets[:, : len(setup.mapped)], method=method,
                       iterations=CONTACT_WARM_ITERATIONS)
         solution = solve(problem, plain.q, plain.t, targets, method=method,
