@@ -76,7 +76,8 @@ def build_library(folder: Path, takes: int, frames: int) -> tuple[int, int]:
 
 def sequential(library: Path, out: Path, operation: str) -> dict:
     """The plain loop: the library calls the batch task makes, one take after another
-    (warnings recorded, as the batch records them, not printed)."""
+    (warnings recorded, as the batch records them, not printed). Before the clock, the
+    process is prepared as a Dask worker prepares itself (imports, one take)."""
     from usdmotion.anthropometry import body_model
     from usdmotion.errors import InputError
     from usdmotion.io import read_motion
@@ -84,9 +85,9 @@ def sequential(library: Path, out: Path, operation: str) -> dict:
     from usdmotion.ops.analyse import analyse
     from usdmotion.ops.analyse.report import summary, write_kinematics, write_summary
 
-    from usdmotion.batch.engine import OPERATION_MODULES, _import_modules
+    from usdmotion.batch.engine import prepare_process
 
-    _import_modules(OPERATION_MODULES[operation])  # as warm_up does on the workers, before the clock
+    prepare_process(operation)  # as warm_up does on the workers, before the clock
     files = sorted(library.rglob("*.bvh"))
     start, cpu = time.perf_counter(), time.process_time()
     with warnings.catch_warnings(record=True) as caught:
@@ -108,15 +109,17 @@ def sequential(library: Path, out: Path, operation: str) -> dict:
     return {"wall_s": time.perf_counter() - start, "cpu_s": time.process_time() - cpu, "warnings": len(caught)}
 
 
-#: One thread everywhere, as in a worker of the local cluster (set before NumPy/Arrow load).
-ONE_THREAD = {"USDMOTION_THREADS": "1", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+#: One thread everywhere, as in a worker of the local cluster (set before NumPy/Arrow/USD load).
+ONE_THREAD = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 
 
 def sequential_one_thread(library: Path, out: Path, operation: str) -> dict:
     """:func:`sequential` in a fresh subprocess with :data:`ONE_THREAD`."""
     code = ("import json, sys; sys.path.insert(0, sys.argv[1]); import batch; "
             "print(json.dumps(batch.sequential(batch.Path(sys.argv[2]), batch.Path(sys.argv[3]), sys.argv[4])))")
-    env = {**os.environ, **ONE_THREAD}
+    from usdmotion.batch.engine import WORKER_ENV
+
+    env = {**os.environ, **ONE_THREAD, **WORKER_ENV}
     env.pop("MALLOC_TRIM_THRESHOLD_", None)  # a LocalCluster started earlier in this process leaks Dask's setting
     done = subprocess.run([sys.executable, "-c", code, str(Path(__file__).parent), str(library), str(out), operation],
                           env=env, capture_output=True, text=True, check=True)
@@ -138,10 +141,11 @@ def _tree_cpu() -> dict[int, float]:
     return out
 
 
-def _rss() -> int:
+def _rss(pids: list[int]) -> float:
+    """Mean resident memory of the processes ``pids`` (bytes), read from /proc by psutil."""
     import psutil
 
-    return psutil.Process().memory_info().rss
+    return sum(psutil.Process(pid).memory_info().rss for pid in pids) / len(pids)
 
 
 def _noop(i: int) -> int:
@@ -161,12 +165,13 @@ def batch_run(library: Path, out: Path, operation: str, workers: int, task_bytes
         warm_up(client, operation)  # imports, once per worker (the loop below already has them)
         startup = time.perf_counter() - t0
         samples, stop = [], threading.Event()
+        pids = list(client.run(os.getpid).values())
 
-        def sample() -> None:
+        def sample() -> None:  # from /proc, not through Dask: no messages to the busy workers
             while not stop.is_set():
                 try:
-                    samples.append((time.perf_counter(), sum(client.run(_rss).values()) / workers))
-                except Exception:  # noqa: BLE001 - a sample lost while the cluster is busy
+                    samples.append((time.perf_counter(), _rss(pids)))
+                except Exception:  # noqa: BLE001 - a worker restarted meanwhile
                     pass
                 stop.wait(0.5)
 
