@@ -30,6 +30,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import pickle
 import shutil
 import statistics
 import subprocess
@@ -89,7 +90,7 @@ def sequential(library: Path, out: Path, operation: str) -> dict:
 
     prepare_process(operation)  # as warm_up does on the workers, before the clock
     files = sorted(library.rglob("*.bvh"))
-    start, cpu = time.perf_counter(), time.process_time()
+    start, cpu, thread = time.perf_counter(), time.process_time(), time.thread_time()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         for path in files:
@@ -106,7 +107,8 @@ def sequential(library: Path, out: Path, operation: str) -> dict:
             kin = analyse(motion, body=body, source=str(path))
             write_summary(summary(kin, None, str(path)), f"{dst}.summary.json")
             write_kinematics(kin, f"{dst}.parquet", None, str(path))
-    return {"wall_s": time.perf_counter() - start, "cpu_s": time.process_time() - cpu, "warnings": len(caught)}
+    return {"wall_s": time.perf_counter() - start, "cpu_s": time.process_time() - cpu,
+            "thread_cpu_s": time.thread_time() - thread, "warnings": len(caught)}
 
 
 #: One thread everywhere, as in a worker of the local cluster (set before NumPy/Arrow/USD load).
@@ -162,8 +164,9 @@ def batch_run(library: Path, out: Path, operation: str, workers: int, task_bytes
 
     t0 = time.perf_counter()
     with dask_client(workers) as client:
-        warm_up(client, operation)  # imports, once per worker (the loop below already has them)
-        startup = time.perf_counter() - t0
+        t1 = time.perf_counter()
+        warm_up(client, operation)  # imports and one take, once per worker (as the loops before their clock)
+        startup, warm = time.perf_counter() - t0, time.perf_counter() - t1
         samples, stop = [], threading.Event()
         pids = list(client.run(os.getpid).values())
 
@@ -198,7 +201,8 @@ def batch_run(library: Path, out: Path, operation: str, workers: int, task_bytes
     cpu_s = sum(r["cpu_seconds"] or 0 for r in rows)
     mem = [m for _, m in samples]
     tenth = max(1, len(mem) // 10)  # memory after the first tenth of the run against the last tenth
-    return {"wall_s": result.seconds, "startup_s": startup, "takes": len(rows), "tasks": tasks,
+    return {"wall_s": result.seconds, "startup_s": startup, "warm_up_s": warm, "takes": len(rows), "tasks": tasks,
+            "workers": workers, "result_bytes_per_take": statistics.mean(len(pickle.dumps(r)) for r in rows),
             "failed": len(result.failed),
             "frames": sum(r.get("frames") or 0 for r in rows), "task_s": task_s,
             "cpu_ms_per_take": 1000 * total_cpu / len(rows), "in_task_cpu_ms_per_take": 1000 * cpu_s / len(rows),
@@ -231,6 +235,17 @@ def run_operation(library: Path, work: Path, operation: str, takes: int, frames:
     return runs
 
 
+def cpu_bound_ratio(runs: dict, name: str) -> float:
+    """The wall-time ratio to the loop the run would give if every process had a core of its
+    own (a quiet machine): the loop's main-thread CPU (its wall time there; its helper threads
+    run beside it) against the CPU of every process of the run spread over its workers."""
+    loop = runs["sequential"]["thread_cpu_s"] / runs["sequential"]["takes"]
+    r = runs[name]
+    if "thread_cpu_s" in r:  # a loop: its main thread
+        return loop / (r["thread_cpu_s"] / r["takes"])
+    return loop / (r["cpu_ms_per_take"] / 1000 / r["workers"])
+
+
 def table_rows(operation: str, runs: dict) -> list[list]:
     seq, one = runs["sequential"]["wall_s"], runs["sequential-1t"]["wall_s"]
     rows = []
@@ -239,10 +254,31 @@ def table_rows(operation: str, runs: dict) -> list[list]:
                if "rss_first_mib" in r else "-")
         rows.append([operation, name, f"{r['wall_s']:.1f}", f"{r['takes'] / r['wall_s']:.1f}",
                      f"{r['frames'] / r['wall_s']:.0f}", f"{seq / r['wall_s']:.2f}x", f"{one / r['wall_s']:.2f}x",
-                     f"{r['cpu_ms_per_take']:.1f}", _fmt(r.get("client_cpu_ms_per_take")),
+                     f"{cpu_bound_ratio(runs, name):.2f}x", f"{r['cpu_ms_per_take']:.1f}", _fmt(r.get("client_cpu_ms_per_take")),
                      f"{r.get('startup_s', 0):.1f}", _fmt(r.get("idle_per_take_ms")), _fmt(r.get("noop_task_ms")),
                      rss, f"{r['load_before']:.1f}"])
     return rows
+
+
+def per_take_costs(results: dict) -> dict:
+    """Where a take's time goes in a worker against the loop (ms of CPU per take unless said)."""
+    costs = {}
+    for op, runs in results.items():
+        seq, one, d1, d2 = (runs[k] for k in ("sequential", "sequential-1t", "dask-1", "dask-2"))
+        costs[op] = {"loop_main_thread": 1000 * seq["thread_cpu_s"] / seq["takes"],
+                     "loop_all_threads": seq["cpu_ms_per_take"], "one_thread_loop": one["cpu_ms_per_take"],
+                     "worker_in_task": d1["in_task_cpu_ms_per_take"], "dask1_all_processes": d1["cpu_ms_per_take"],
+                     "dask2_all_processes": d2["cpu_ms_per_take"], "dask2_client_and_scheduler": d2["client_cpu_ms_per_take"],
+                     "noop_task_round_trip_ms": d2["noop_task_ms"], "warm_up_s": d2["warm_up_s"],
+                     "result_bytes_per_take": d2["result_bytes_per_take"], "takes_per_task": d2["takes"] / d2["tasks"]}
+        c = costs[op]
+        print(f"  {op}: loop {c['loop_main_thread']:.1f} ms main thread ({c['loop_all_threads']:.1f} all threads), "
+              f"1-thread loop {c['one_thread_loop']:.1f}; in a worker {c['worker_in_task']:.1f} in-task, all processes "
+              f"{c['dask1_all_processes']:.1f} (1 worker) / {c['dask2_all_processes']:.1f} (2; client + scheduler "
+              f"{c['dask2_client_and_scheduler']:.1f}); per task: no-op round trip {c['noop_task_round_trip_ms']:.1f} ms, "
+              f"{c['takes_per_task']:.0f} takes, {c['result_bytes_per_take']:.0f} B of result per take; "
+              f"warm-up (imports + one take) {c['warm_up_s']:.1f} s per cluster")
+    return costs
 
 
 def on_paper(results: dict) -> dict:
@@ -282,11 +318,12 @@ def main() -> None:
             table += table_rows(operation, results[operation])
         print_table(f"usdmotion batch on {machine()['cpus']} cores ({takes} takes, {frames} frames); CPU: of every "
                     "process of the run, ms per take", ["operation", "engine", "wall s", "takes/s", "frames/s",
-                    "vs loop", "vs 1t loop", "CPU ms/take", "client CPU", "start-up+imports s", "idle ms/take",
+                    "vs loop", "vs 1t loop", "CPU-bound vs loop", "CPU ms/take", "client CPU", "start-up+warm-up s", "idle ms/take",
                     "no-op ms/task", "worker RSS MiB first→last", "load avg"], table)
+        costs = per_take_costs(results)
         paper = on_paper(results)
         path = write_results("batch", {"takes": takes, "frames": frames, "frames_per_take": args.frames,
-                                       "results": results, "on_paper_takes_per_s": paper})
+                                       "results": results, "per_take_costs": costs, "on_paper_takes_per_s": paper})
         print(f"wrote {path}")
     finally:
         shutil.rmtree(work, ignore_errors=True)
