@@ -137,10 +137,10 @@ OPERATION_MODULES = {
     "retarget": ("usdmotion.io", "usdmotion.ops.retarget.files", "usdmotion.ops.retarget.solve"),
     "render": ("usdmotion.io", "usdmotion.render"),
 }
-#: Operations whose workers also run one short take at start (:func:`prepare_process`): their
-#: takes last tens of milliseconds, while the first take of a process costs 0.3 s (convert: USD's
-#: plug-ins and validators) to 1.5 s (analyze: SciPy's filters, pandas under pyarrow) of lazy
-#: imports and caches. Retarget (a JAX compile per rig) and render (seconds a take) do not.
+#: Operations whose workers also run one take at start (:func:`prepare_process`): their takes
+#: cost 15-50 ms of CPU, while the first take of a process costs 0.5 s (convert: USD's plug-ins
+#: and validators) to 1.2 s (analyze: SciPy's filters, pandas under pyarrow) of lazy imports and
+#: caches (measured under load 11). Retarget (a JAX compile per rig) and render (seconds a take) do not.
 WARM_TAKE_OPERATIONS = ("convert", "analyze", "segment")
 
 
