@@ -11,7 +11,7 @@ Anti-aliasing on a CPU rasteriser (Mesa llvmpipe): MSAA stores and resolves 4 sa
 pixel (llvmpipe offers 4 only: 2 is rounded up) and halves the frame rate; FXAA (Lottes'
 fast approximate anti-aliasing) smooths luma edges after rendering and is the default. It
 is drawn only over the 4×4 tiles near drawn pixels (:class:`FxaaPass`): the same picture as a
-full-screen pass at about a quarter of its cost.
+full-screen pass for about 0.35 of its CPU time (7 instead of 19 ms a 720p frame on llvmpipe).
 """
 
 from __future__ import annotations
