@@ -12,7 +12,9 @@ the default FXAA pass drawn on the tiles near drawn pixels ("plain"), the same p
 picture (the default before, same output: "FXAA full-screen"), none ("no AA", ``--no-fxaa``) and
 MSAA 4 (``--msaa 4``; Mesa's llvmpipe offers 4 samples only, so ``--msaa 2`` is the same).
 ``--long N`` also renders N frames at 320×240 to check that memory stays flat (RSS
-sampled every 500 frames). Prints a table; writes ``benchmarks/results/render.json``.
+sampled every 500 frames). ``--ab N`` renders only the anti-aliasing rows (FXAA tiles,
+FXAA full-screen, no AA), alternating, N times each, and prints each one's median (for a
+machine loaded by other jobs); JSON to ``benchmarks/results/render_ab.json``. Prints a table; writes ``benchmarks/results/render.json``.
 """
 
 from __future__ import annotations
@@ -112,10 +114,37 @@ def run_long(motion, count: int, tmp: Path) -> dict:
             "rss_growth_mib_after_first_1000": samples[-1][1] - samples[1][1] if len(samples) > 2 else None}
 
 
+AA_ROWS = ("plain", "FXAA full-screen", "no AA")
+
+
+def run_ab(motion, repeats: int, frames: int, tmp: Path) -> None:
+    """The anti-aliasing rows at 1280x720, alternating, ``repeats`` times each; medians."""
+    runs = {name: [] for name in AA_ROWS}
+    for _ in range(repeats):
+        for name in AA_ROWS:
+            case = run_case(motion, 1280, 720, False, frames, tmp, name, FEATURES[name][0])
+            runs[name].append({"fps_end_to_end": case["fps_end_to_end"], "cpu_ms_per_frame": case["cpu_ms_per_frame"],
+                               "load_average": os.getloadavg()[0]})
+    median = {name: {key: float(np.median([r[key] for r in rows])) for key in rows[0]} for name, rows in runs.items()}
+    print(f"anti-aliasing rows at 1280x720, {frames} frames, alternating, {repeats} times each (medians)")
+    print(f"{'case':>18} {'fps e2e':>8} {'/ no AA':>8} {'CPU ms/frame':>12} {'/ no AA':>8} {'load':>5}")
+    base = median["no AA"]
+    for name, m in median.items():
+        print(f"{name:>18} {m['fps_end_to_end']:>8.1f} {m['fps_end_to_end'] / base['fps_end_to_end']:>8.2f} "
+              f"{m['cpu_ms_per_frame']:>12.1f} {m['cpu_ms_per_frame'] / base['cpu_ms_per_frame']:>8.2f} "
+              f"{m['load_average']:>5.1f}")
+    out = ROOT / "benchmarks" / "results" / "render_ab.json"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps({"benchmark": "render --ab", "input": WALK.name, "frames": frames, "runs": runs,
+                               "medians": median, "cpu_count": os.cpu_count()}, indent=2))
+    print(f"wrote {out}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--frames", type=int, default=120, help="output frames per case")
     parser.add_argument("--long", type=int, default=0, help="also render this many frames to check memory")
+    parser.add_argument("--ab", type=int, default=0, help="only the anti-aliasing rows, alternating, N times each")
     args = parser.parse_args()
     import tempfile
 
@@ -123,6 +152,8 @@ def main() -> None:
 
     motion = read_motion(WALK, units="asf")
     tmp = Path(tempfile.mkdtemp(prefix="usdmotion-bench-"))
+    if args.ab:
+        return run_ab(motion, args.ab, args.frames, tmp)
     renderer = gl_renderer()
     cases = [run_case(motion, w, h, s, args.frames, tmp) for (w, h) in ((1280, 720), (640, 480)) for s in (False, True)]
     # a second take for the ghost: the same walk, 0.3 m aside
