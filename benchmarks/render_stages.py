@@ -7,7 +7,8 @@ thread; ``render`` runs it on a writer thread beside the rendering).
 
     PYTHONPATH=$PWD python benchmarks/render_stages.py [--frames 120]
 
-For each stage: wall ms and the process's CPU ms (all threads, llvmpipe's included) per frame;
+For each stage: wall ms and the process's CPU ms (all threads, llvmpipe's included) per frame
+after the first (which compiles the shaders);
 the CPU figure moves much less than the wall one when other jobs load the machine. Modes:
 "FXAA tiles" (the default), "FXAA full-screen" (the same pass over the whole picture, the
 default before), "no AA" (``--no-fxaa``), "MSAA 4". Prints a table; writes
@@ -82,12 +83,12 @@ def profile(motion, frames: int, extra: dict, out: Path) -> dict:
             writer.write(image, i)
             marks.append(clocks())
             for stage, a, b in zip(STAGES, marks, marks[1:]):
-                spent[stage] += np.subtract(b, a)
+                spent[stage] += np.subtract(b, a) if i else 0.0  # the first frame compiles the shaders
         writer.commit()
     finally:
         views.close()
         gl.FXAA_TILES = True
-    n = len(plan.frames)
+    n = len(plan.frames) - 1
     return {stage: [1e3 * t / n for t in spent[stage]] for stage in STAGES}
 
 

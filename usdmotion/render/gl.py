@@ -76,11 +76,12 @@ def offscreen_renderer(width: int, height: int, msaa: int = 0, fxaa: bool = True
             GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, inner._main_fb)
             GL.glBlitFramebuffer(0, 0, w, h, 0, 0, w, h, GL.GL_COLOR_BUFFER_BIT, GL.GL_NEAREST)
         else:
-            post.apply(w, h, inner._main_fb_ms, inner._main_fb)
+            post.apply(w, h, inner._main_fb_ms, inner._main_fb)  # drawn top row first: no flip here
         GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, inner._main_fb)
         GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
-        data = GL.glReadPixels(0, 0, w, h, GL.GL_RGB, GL.GL_UNSIGNED_BYTE)
-        return np.frombuffer(data, np.uint8).reshape(h, w, 3)[::-1], None
+        image = np.empty((h, w, 3), np.uint8)
+        GL.glReadPixels(0, 0, w, h, GL.GL_RGB, GL.GL_UNSIGNED_BYTE, image)
+        return (image if post is not None else image[::-1]), None
 
     inner._read_main_framebuffer = read_color
     return renderer
@@ -89,33 +90,36 @@ def offscreen_renderer(width: int, height: int, msaa: int = 0, fxaa: bool = True
 
 
 _FULL_SCREEN_VERTEX = """#version 410 core
+uniform float flip;  // -1: upside down (the FXAA pass writes the top row first), 1: as is
 void main() {  // one triangle over the whole picture
     vec2 p = vec2((gl_VertexID << 1) & 2, gl_VertexID & 2);
-    gl_Position = vec4(2.0 * p - 1.0, 0.0, 1.0);
+    gl_Position = vec4(2.0 * p.x - 1.0, flip * (2.0 * p.y - 1.0), 0.0, 1.0);
 }
 """
 
-#: The FXAA pass drawn over quads in pixel coordinates (the runs of tiles that need it).
+#: The FXAA pass drawn over quads in pixel coordinates (the runs of tiles that need it),
+#: upside down: the picture is read back top row first without a flip.
 _QUAD_VERTEX = """#version 410 core
 layout(location = 0) in vec2 pixel;
 uniform vec2 size;
-void main() { gl_Position = vec4(2.0 * pixel / size - 1.0, 0.0, 1.0); }
+void main() { gl_Position = vec4(2.0 * pixel.x / size.x - 1.0, 1.0 - 2.0 * pixel.y / size.y, 0.0, 1.0); }
 """
 
 #: FXAA (T. Lottes, NVIDIA 2009/2011), the "fast" variant: luma of the 4 diagonal neighbours
 #: gives the edge direction; 2 + 2 samples along it are blended; pixels off edges are kept.
 #: The five taps are plain texel reads (no filtering: cheap on a CPU rasteriser), clamped to the
 #: picture (a tap outside it would read black and make an edge of the picture's border); only
-#: edge pixels take the four filtered samples.
+#: edge pixels take the four filtered samples. It writes the picture upside down (row y of
+#: ``image`` to row H-1-y).
 _FXAA_FRAGMENT = """#version 410 core
 uniform sampler2D image;
 out vec4 color;
 float luma(vec3 c) { return dot(c, vec3(0.299, 0.587, 0.114)); }
 float tap(ivec2 p, ivec2 last) { return luma(texelFetch(image, clamp(p, ivec2(0), last), 0).rgb); }
 void main() {
-    ivec2 p = ivec2(gl_FragCoord.xy);
     ivec2 last = textureSize(image, 0) - 1;
-    vec2 uv = gl_FragCoord.xy / vec2(last + 1);
+    ivec2 p = ivec2(gl_FragCoord.x, float(last.y + 1) - gl_FragCoord.y);  // the source pixel
+    vec2 uv = (vec2(p) + 0.5) / vec2(last + 1);
     vec3 m = texelFetch(image, p, 0).rgb;
     float lm = luma(m);
     float nw = tap(p + ivec2(-1, 1), last);
@@ -278,6 +282,7 @@ class FxaaPass:
         GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, self.tile_framebuffer)
         GL.glViewport(0, 0, columns, rows)
         GL.glUseProgram(self.programs["tiles"])
+        GL.glUniform1f(GL.glGetUniformLocation(self.programs["tiles"], "flip"), 1.0)
         GL.glBindTexture(GL.GL_TEXTURE_2D, self.depth)
         GL.glUniform1i(GL.glGetUniformLocation(self.programs["tiles"], "depth"), 0)
         GL.glBindVertexArray(self.empty_vao)
@@ -301,9 +306,9 @@ class FxaaPass:
         GL.glActiveTexture(GL.GL_TEXTURE0)
         if self.tiles:
             quads = self._kept_tiles()
-            GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, source)
+            # the tiles left out hold only background: the clear colour the picture was drawn on
             GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, target)
-            GL.glBlitFramebuffer(0, 0, width, height, 0, 0, width, height, GL.GL_COLOR_BUFFER_BIT, GL.GL_NEAREST)
+            GL.glClear(GL.GL_COLOR_BUFFER_BIT)
             program = self.programs["quads"]
             GL.glUseProgram(program)
             GL.glUniform2f(GL.glGetUniformLocation(program, "size"), float(width), float(height))
@@ -316,6 +321,7 @@ class FxaaPass:
             GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, target)
             program = self.programs["full"]
             GL.glUseProgram(program)
+            GL.glUniform1f(GL.glGetUniformLocation(program, "flip"), -1.0)
             GL.glBindVertexArray(self.empty_vao)
             count = 3
         GL.glViewport(0, 0, width, height)
