@@ -215,9 +215,10 @@ class FxaaPass:
     (llvmpipe runs every instruction for every pixel: a branch does not skip work), while only a
     few per cent of a video frame lie near anything drawn. So the picture is cut into
     :data:`TILE` × :data:`TILE` tiles; one small pass over the depth buffer marks the tiles with
-    a drawn pixel in or around them, the picture is copied to ``target`` and the FXAA shader is
-    drawn over the marked tiles only (one quad per run of tiles in a row). Pixels elsewhere have
-    only background around them, which FXAA leaves as it is: the result is the full-screen pass's.
+    a drawn pixel in or around them, ``target`` is cleared to the background colour and the FXAA
+    shader is drawn over the marked tiles only (one quad per run of tiles in a row). Pixels
+    elsewhere are background with only background around them, which FXAA leaves as it is: the
+    result is the full-screen pass's (:data:`FXAA_TILES` ``False``), bit for bit.
     """
 
     def __init__(self, tiles: bool | None = None) -> None:
@@ -292,8 +293,27 @@ class FxaaPass:
         keep = np.frombuffer(GL.glReadPixels(0, 0, columns, rows, GL.GL_RED, GL.GL_UNSIGNED_BYTE), np.uint8)
         return tile_runs(keep.reshape(rows, columns) > 0)
 
+    def _tile_quads(self, width: int, height: int, target: int) -> tuple[int, int]:
+        """Clear ``target`` to the background and load the quads over the kept tiles:
+        ``(program, vertex count)`` to draw."""
+        from OpenGL import GL
+
+        quads = self._kept_tiles()
+        # the tiles left out hold only background: the clear colour the picture was drawn on
+        GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, target)
+        GL.glClear(GL.GL_COLOR_BUFFER_BIT)
+        program = self.programs["quads"]
+        GL.glUseProgram(program)
+        GL.glUniform2f(GL.glGetUniformLocation(program, "size"), float(width), float(height))
+        GL.glBindVertexArray(self.quad_vao)
+        GL.glBindBuffer(GL.GL_ARRAY_BUFFER, self.quad_buffer)
+        GL.glBufferData(GL.GL_ARRAY_BUFFER, quads.nbytes, quads if len(quads) else None, GL.GL_STREAM_DRAW)
+        GL.glBindBuffer(GL.GL_ARRAY_BUFFER, 0)
+        return program, 6 * len(quads)
+
     def apply(self, width: int, height: int, source: int, target: int) -> None:
-        """Smooth the picture in framebuffer ``source`` into framebuffer ``target``."""
+        """Smooth the picture in framebuffer ``source`` into framebuffer ``target``, upside down
+        (``target`` read back from row 0 up is the picture top row first)."""
         from OpenGL import GL
 
         if self.size != (width, height):
@@ -305,25 +325,13 @@ class FxaaPass:
             GL.glDisable(cap)
         GL.glActiveTexture(GL.GL_TEXTURE0)
         if self.tiles:
-            quads = self._kept_tiles()
-            # the tiles left out hold only background: the clear colour the picture was drawn on
-            GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, target)
-            GL.glClear(GL.GL_COLOR_BUFFER_BIT)
-            program = self.programs["quads"]
-            GL.glUseProgram(program)
-            GL.glUniform2f(GL.glGetUniformLocation(program, "size"), float(width), float(height))
-            GL.glBindVertexArray(self.quad_vao)
-            GL.glBindBuffer(GL.GL_ARRAY_BUFFER, self.quad_buffer)
-            GL.glBufferData(GL.GL_ARRAY_BUFFER, quads.nbytes, quads if len(quads) else None, GL.GL_STREAM_DRAW)
-            GL.glBindBuffer(GL.GL_ARRAY_BUFFER, 0)
-            count = 6 * len(quads)
+            program, count = self._tile_quads(width, height, target)
         else:
             GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, target)
-            program = self.programs["full"]
+            program, count = self.programs["full"], 3
             GL.glUseProgram(program)
             GL.glUniform1f(GL.glGetUniformLocation(program, "flip"), -1.0)
             GL.glBindVertexArray(self.empty_vao)
-            count = 3
         GL.glViewport(0, 0, width, height)
         GL.glBindTexture(GL.GL_TEXTURE_2D, self.texture)
         GL.glUniform1i(GL.glGetUniformLocation(program, "image"), 0)
