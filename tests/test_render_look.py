@@ -115,7 +115,7 @@ def test_fxaa_blends_edges_and_leaves_the_rest(shared_file, tmp_path):
 def test_fxaa_on_tiles_equals_the_full_screen_pass(shared_file, tmp_path, monkeypatch):
     """The default FXAA pass runs only on the tiles near drawn pixels; over a walk with its
     ghost, grid, traces and contact shadow every frame is the full-screen pass's, bit for bit,
-    and both differ from the picture without anti-aliasing."""
+    and both differ from the picture without anti-aliasing; so is a two-view frame with shadows."""
     from usdmotion.render import gl
 
     walk = read_motion(shared_file(WALK), units="asf")
@@ -131,6 +131,13 @@ def test_fxaa_on_tiles_equals_the_full_screen_pass(shared_file, tmp_path, monkey
     np.testing.assert_array_equal(frames["tiles"], frames["full"])
     smoothed = (frames["tiles"] != frames["none"]).any(axis=-1).sum(axis=(1, 2))
     assert (smoothed > 100).all(), smoothed
+    # two views with shadows on a solid floor (every tile kept): still the full-screen pass
+    views = dataclasses.replace(options, shadows=True, layout="1x2", camera="side,front", end=110)
+    for name, tiles in (("tiles2", True), ("full2", False)):
+        monkeypatch.setattr(gl, "FXAA_TILES", tiles)
+        render_motion(walk, tmp_path / f"{name}/####.png", views)
+        frames[name] = read_image(tmp_path / name / "0000.png")
+    np.testing.assert_array_equal(frames["tiles2"], frames["full2"])
 
 
 def test_tile_runs_cover_exactly_the_kept_tiles():
