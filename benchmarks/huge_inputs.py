@@ -1,6 +1,6 @@
 """Deep and huge inputs (issue 16, "Must show" 3): time and peak memory of the real CLI.
 
-    python benchmarks/huge_inputs.py [--frames 1000000] [--depth 50000] [--unrepeated]
+    python benchmarks/huge_inputs.py [--frames 1000000] [--depth 50000] [--repeat 1] [--unrepeated]
 
 1. A ``--depth``-deep joint chain (BVH) converted to USDC: converted or refused, in how
    long and how much memory (goal ≤ 5 s and ≤ 1 GB).
@@ -78,16 +78,36 @@ def unrepeated_bvh(source: Path, frames: int, out: Path, noise_deg: float = 0.05
     return out
 
 
+def alternating_reads(bvh: Path, usdc: Path | None, repeat: int) -> tuple[dict, dict]:
+    """``usdmotion info`` of the BVH and the USDC, alternating ``repeat`` times: the run with
+    the median seconds of each (the machine's load drifts; alternation pairs the two)."""
+    runs = {"bvh": [], "usdc": []}
+    for _ in range(repeat):
+        runs["bvh"].append(run_cli("info", bvh))
+        if usdc is not None:
+            runs["usdc"].append(run_cli("info", usdc))
+
+    def median(found: list[dict]) -> dict:
+        if not found:
+            return {"exit": None, "seconds": None, "peak_mb": None}
+        ordered = sorted(found, key=lambda r: r["seconds"])
+        return {**ordered[len(ordered) // 2], "all_seconds": [r["seconds"] for r in found]}
+
+    return median(runs["bvh"]), median(runs["usdc"])
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frames", type=int, default=1_000_000)
     parser.add_argument("--depth", type=int, default=50_000)
+    parser.add_argument("--repeat", type=int, default=1,
+                        help="read the BVH and the USDC this many times, alternating (median; 3 under load)")
     parser.add_argument("--unrepeated", action="store_true",
                         help="add per-frame noise to the tiled walk (no repeated frame: a real take's USDC size)")
     args = parser.parse_args()
     load_before = os.getloadavg()[0]  # timings on a shared machine mean little without it
     work = Path(tempfile.mkdtemp(prefix="usdmotion-huge-"))
-    rows, payload = [], {"frames": args.frames, "depth": args.depth}
+    rows, payload = [], {"frames": args.frames, "depth": args.depth, "repeat": args.repeat}
     try:
         chain = chain_bvh(args.depth, work / "chain.bvh")
         deep = run_cli("convert", chain, work / "chain.usdc")
@@ -106,9 +126,7 @@ def main() -> None:
         payload["usdc_mb"] = round((work / "big.usdc").stat().st_size / 2**20, 1) if convert["exit"] == 0 else None
         rows.append([f"{args.frames:,}-frame BVH → USDC", f"exit {convert['exit']}", convert["seconds"],
                      convert["peak_mb"], f"{convert['peak_mb'] / float_mb:.2f}× float data", ""])
-        read_bvh = run_cli("info", big)
-        read_usd = run_cli("info", work / "big.usdc") if convert["exit"] == 0 else {"exit": None, "seconds": None,
-                                                                                     "peak_mb": None}
+        read_bvh, read_usd = alternating_reads(big, work / "big.usdc" if convert["exit"] == 0 else None, args.repeat)
         payload["read_bvh"], payload["read_usdc"] = read_bvh, read_usd
         rows.append(["read BVH (info)", f"exit {read_bvh['exit']}", read_bvh["seconds"], read_bvh["peak_mb"],
                      f"{read_bvh['peak_mb'] / float_mb:.2f}× float data", "peer"])
