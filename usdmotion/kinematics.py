@@ -102,13 +102,14 @@ def fk_arrays(local_rotations, local_translations, parents: np.ndarray):
     return world_q, world_p
 
 
-def position_bounds(motion: Motion, chunk_frames: int = 4096) -> tuple[np.ndarray, np.ndarray]:
+def position_bounds(motion: Motion, chunk_frames: int = 2048) -> tuple[np.ndarray, np.ndarray]:
     """``(low (3,), high (3,))``: the box of every joint's world position over every frame
     (file units) of a motion with at least one frame. Equal to the bounds of
     :func:`joint_positions`, without assembling the ``(F, J, 3)`` array: the FK planes
     of ``chunk_frames`` frames at a time (a long take's planes and local translations for
-    all frames at once were several times its data, the peak of a 1M-frame convert), the
-    frames split between threads (:func:`usdmotion.parallel.over_slices`; NumPy releases the GIL)."""
+    all frames at once were several times its data, the peak of a 1M-frame convert; small
+    chunks reuse the same memory, 4,096 frames at a time cost a fresh page for every temporary),
+    the frames split between threads (:func:`usdmotion.parallel.over_slices`; NumPy releases the GIL)."""
     lows, highs = [], []
 
     def bounds_of(frames: slice) -> None:  # threads take turns over slices of frames (min/max: exact in any order)
