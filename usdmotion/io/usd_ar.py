@@ -45,17 +45,18 @@ UNCHECKED = (
 DEFAULT_COLOR = (0.62, 0.62, 0.62)
 
 
-def finish_stage(stage, skeleton, motion) -> None:
+def finish_stage(stage, skeleton, motion, bounds: tuple[np.ndarray, np.ndarray] | None = None) -> None:
     """Author ``kind``, ``extent``/``extentsHint`` and materials (see the module docstring).
 
     ``skeleton``: the Skeleton (``Usd.Prim`` or ``UsdSkel.Skeleton``) under the SkelRoot.
+    ``bounds``: ``position_bounds`` of the animation when ``motion`` holds only its skeleton.
     A skeleton-only stage is finished without importing ``pxr.UsdGeom``/``UsdSkel`` (start-up)."""
     from pxr import Kind, Usd
 
     root = skeleton.GetPrim().GetParent()
     Usd.ModelAPI(root).SetKind(Kind.Tokens.component)
     meshes = _meshes(root)
-    _extent(stage, root, motion, meshes)
+    _extent(stage, root, motion, meshes, bounds)
     _materials(stage, root, meshes)
 
 
@@ -67,10 +68,12 @@ def _meshes(root) -> list:
     return [prim for prim in root.GetChildren() if prim.IsA(mesh)]
 
 
-def _extent(stage, root, motion, meshes: list) -> None:
+def _extent(stage, root, motion, meshes: list, bounds) -> None:
     from pxr import Gf, Sdf, Vt
 
-    if motion.n_frames:
+    if bounds is not None:
+        lo, hi = bounds
+    elif motion.n_frames:
         lo, hi = position_bounds(motion)
     else:  # no time samples: the stage shows the rest pose (define_skeleton's defaults)
         rest = rest_pose(motion)[1]
