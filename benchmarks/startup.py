@@ -2,8 +2,8 @@
 
     .venv/bin/python benchmarks/startup.py [--repeat 5]
 
-Each command runs as a new process (what a user waits for), ``--repeat`` times after one
-warm-up, the trees (``--tree``) taking turns; the table shows medians, each command's time
+Each command runs as a new process running the console script's code (``usdmotion.__main__.run``:
+what a user waits for, interpreter exit included), ``--repeat`` times after one warm-up, the trees (``--tree``) taking turns; the table shows medians, each command's time
 over the bare interpreter's in the same run, and its CPU time (user + system, all threads:
 steadier than wall time on a loaded machine). Modules run from bytecode, as from an installed package (pip compiles it at
 install): the processes write and read it under a temporary ``PYTHONPYCACHEPREFIX``, so
@@ -12,8 +12,9 @@ make every run recompile the package (about 0.02 s; ``--no-bytecode`` measures t
 A second table splits the ``convert`` → USDC process's import time (``-X importtime``,
 self times summed by top-level package, the least of three extra runs; its total exceeds
 the timed runs' because of the instrumentation), and a third the CPU time and page faults of
-each step of one such convert done step by step (imports, read, write, validate). Inputs: the bundled CMU walk tiled to 1,730 frames (1.3 MB, for ``info``)
-and to 5,000 frames (31 joints, for ``convert`` to .usdc and .bvh). Goals (issue 11):
+each step of one such convert done step by step (imports, read, write, validate; not the
+command-line parsing and exit). Inputs: the bundled CMU walk tiled to 1,730 frames (1.3 MB,
+for ``info``) and to 5,000 frames (31 joints, for ``convert`` to .usdc and .bvh). Goals (issue 11):
 ``info`` ≤ 0.30 s and ``convert`` to USDC ≤ 0.40 s whole process. The modules each command
 imported are listed too (``-X importtime`` would slow the run; ``sys.modules`` at exit).
 """
