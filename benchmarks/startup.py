@@ -3,8 +3,9 @@
     .venv/bin/python benchmarks/startup.py [--repeat 5]
 
 Each command runs as a new process running the console script's code (``usdmotion.__main__.run``:
-what a user waits for, interpreter exit included), ``--repeat`` times after one warm-up, the trees (``--tree``) taking turns; the table shows medians, each command's time
-over the bare interpreter's in the same run, and its CPU time (user + system, all threads:
+what a user waits for, interpreter exit included), ``--repeat`` times after one warm-up,
+the trees (``--tree``) taking turns; the table shows medians, each command's time over the
+bare interpreter's in the same run, and its CPU time (user + system, all threads:
 steadier than wall time on a loaded machine). Modules run from bytecode, as from an installed package (pip compiles it at
 install): the processes write and read it under a temporary ``PYTHONPYCACHEPREFIX``, so
 the warm-up compiles and ``PYTHONDONTWRITEBYTECODE`` in the caller's environment does not

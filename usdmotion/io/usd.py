@@ -161,7 +161,8 @@ def define_skeleton(stage, motion: Motion, root_path: str, frames: FrameSamples 
 
     anim = stage.DefinePrim(f"{root_path}/Animation", "SkelAnimation")
     schema_attribute(anim, "joints", types.TokenArray, tokens, uniform=True)
-    schema_attribute(anim, "scales", types.Half3Array, Vt.Vec3hArray.FromNumpy(np.ones((motion.n_joints, 3), np.float16)))
+    scales = Vt.Vec3hArray.FromNumpy(np.ones((motion.n_joints, 3), np.float16))
+    schema_attribute(anim, "scales", types.Half3Array, scales)
     translations_attr = schema_attribute(anim, "translations", types.Float3Array)
     rotations_attr = schema_attribute(anim, "rotations", types.QuatfArray)
     skel.AddAppliedSchema("SkelBindingAPI")  # UsdSkel.BindingAPI.Apply

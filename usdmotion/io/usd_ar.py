@@ -61,7 +61,8 @@ def finish_stage(stage, skeleton, motion, bounds: tuple[np.ndarray, np.ndarray] 
 
 
 def _meshes(root) -> list:
-    """The ``Usd.Prim`` children of ``root`` that are ``UsdGeom.Mesh`` prims (``IsA`` by type name: no ``pxr.UsdGeom`` import)."""
+    """The ``Usd.Prim`` children of ``root`` that are ``UsdGeom.Mesh`` prims (``IsA`` through the
+    type's name: no ``pxr.UsdGeom`` import)."""
     from pxr import Tf
 
     mesh = Tf.Type.FindByName("UsdGeomMesh")
@@ -95,7 +96,7 @@ def _extent(stage, root, motion, meshes: list, bounds) -> None:
 def _materials(stage, root, meshes: list) -> None:
     if not meshes:
         return
-    from pxr import Gf, Sdf, UsdGeom, UsdShade  # only here: pxr.UsdShade imports Sdr (skeleton-only stages need neither)
+    from pxr import Gf, Sdf, UsdGeom, UsdShade  # only here: UsdShade imports Sdr (skeleton-only stages need neither)
 
     for prim in meshes:
         if UsdShade.MaterialBindingAPI(prim).GetDirectBindingRel().GetTargets():
