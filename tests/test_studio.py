@@ -4,6 +4,7 @@ every number it serves is the library's (FK, analysis, DTW alignment, spatial al
 from __future__ import annotations
 
 import json
+import socket
 from urllib.parse import quote
 
 import numpy as np
@@ -88,6 +89,27 @@ def test_requests_are_read_only_and_bounded(studio):
     conn.close()
     many = "&".join(f"id=0/t{i}.bvh" for i in range(201))
     assert raw_get(studio[0], "/api/meta?" + many)[0] == 413
+
+
+def test_only_requests_naming_this_machine_are_answered(studio):
+    """DNS rebinding: a page of evil.example that resolves to 127.0.0.1 sends ``Host: evil.example``;
+    the library must not answer it, and the studio keeps serving its own page."""
+    from urllib.parse import urlsplit
+
+    from usdmotion.studio.server import host_names
+
+    base, port = studio[0], urlsplit(studio[0]).port
+    for host in ("evil.example", f"evil.example:{port}", f"127.0.0.1.evil.example:{port}", f"LOCALHOST.evil:{port}", ""):
+        for target in ("/api/takes", "/", "/app/main.js", "/api/positions?take=0/walk.bvh"):
+            status, body = raw_get(base, target, host_header=host)
+            assert status == 400, (host, target)
+            assert b"walk" not in body and b"does not answer" in body
+    for host in (f"127.0.0.1:{port}", f"localhost:{port}", "LocalHost", f"[::1]:{port}", "192.168.1.20:8765"):
+        status, body = raw_get(base, "/api/takes", host_header=host)
+        assert status == 200 and b"walk.bvh" in body, host
+    assert raw_get(base, "/")[0] == 200
+    assert host_names("0.0.0.0") == [socket.gethostname().lower()]
+    assert host_names("studio.lab", ["Coach-PC", "[::1]"]) == ["studio.lab", "coach-pc", "::1"]
 
 
 def test_positions_are_the_library_fk_in_metres(studio):
