@@ -112,6 +112,27 @@ def test_only_requests_naming_this_machine_are_answered(studio):
     assert host_names("studio.lab", ["Coach-PC", "[::1]"]) == ["studio.lab", "coach-pc", "::1"]
 
 
+def test_the_rig_column_names_cmu_asf_amc_takes(tmp_path, shared_file):
+    """86_01.amc's bones (lfemur, lclavicle...) fit no automatic-map profile; the library still
+    names their family: the 'asf' profile (used only where named), whose signature they carry."""
+    import shutil
+
+    from usdmotion.skeleton_names import rig_profiles
+    from usdmotion.studio.library import Library
+
+    lib = tmp_path / "lib"
+    lib.mkdir()
+    for name in ("86.asf", "86_01.amc"):
+        shutil.copy(shared_file(f"cmu86/{name}"), lib / name)
+    shutil.copy(WALK, lib / "walk.bvh")
+    library = Library([lib], {"units": "asf"})
+    meta = {e.name: library.metadata(e) for e in library.scan()}
+    names = read_motion(lib / "86_01.amc").joint_names
+    assert set(rig_profiles()["asf"]["signature"]) <= set(names)
+    assert meta["86_01.amc"]["rig"] == "asf" and meta["86_01.amc"]["joints"] == 31
+    assert meta["walk.bvh"]["rig"] == "cmu_cgspeed"  # an automatic-map profile still wins where one fits
+
+
 def test_positions_are_the_library_fk_in_metres(studio):
     base, lib = studio
     status, body = raw_get(base, "/api/positions?take=0/walk.bvh")
