@@ -63,6 +63,7 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=1_000_000)
     parser.add_argument("--depth", type=int, default=50_000)
     args = parser.parse_args()
+    load_before = os.getloadavg()[0]  # timings on a shared machine mean little without it
     work = Path(tempfile.mkdtemp(prefix="usdmotion-huge-"))
     rows, payload = [], {"frames": args.frames, "depth": args.depth}
     try:
@@ -95,8 +96,10 @@ def main() -> None:
         for path in sorted(work.rglob("*"), reverse=True):
             path.unlink() if path.is_file() else path.rmdir()
         work.rmdir()
+    payload["load_average_1min"] = [load_before, os.getloadavg()[0]]
     print_table(f"huge inputs ({args.frames:,} frames × 96 channels = {payload['float_data_mb']} MB float64; "
-                f"BVH {payload['bvh_mb']} MB)", ["case", "outcome", "seconds", "peak MB", "memory", "vs"], rows)
+                f"BVH {payload['bvh_mb']} MB; 1-min load average {load_before:.1f} → {os.getloadavg()[0]:.1f})",
+                ["case", "outcome", "seconds", "peak MB", "memory", "vs"], rows)
     print(f"wrote {write_results('huge_inputs', payload)}")
 
 

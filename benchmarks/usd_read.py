@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import statistics
 import subprocess
 import sys
@@ -64,6 +65,7 @@ def main() -> None:
     from usdmotion.io import read_motion
     from usdmotion.io.usd import write_usd
 
+    load_before = os.getloadavg()[0]  # timings on a shared machine mean little without it
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         bvh = tiled_bvh(args.source, args.frames, tmp / "long.bvh")
@@ -74,12 +76,14 @@ def main() -> None:
               "memory_usdc_over_bvh": results["usdc"]["peak_mib"] / results["bvh"]["peak_mib"]}
     rows = [[k, f"{v['frames']}×{v['joints']}", f"{v['median_s']:.3f}", f"{v['peak_mib']:.0f}", f"{v['base_mib']:.0f}",
              f"{sizes[k + '_mib']:.0f}"] for k, v in results.items()]
-    print_table(f"read_motion, {args.frames} frames (median of {args.repeat} fresh processes)",
+    load = [load_before, os.getloadavg()[0]]
+    print_table(f"read_motion, {args.frames} frames (median of {args.repeat} fresh processes; "
+                f"1-min load average {load[0]:.1f} → {load[1]:.1f})",
                 ["file", "frames×joints", "seconds", "peak MiB", "after imports MiB", "file MiB"], rows)
     print(f"USDC/BVH: time {ratios['time_usdc_over_bvh']:.2f}×, memory {ratios['memory_usdc_over_bvh']:.2f}× "
           "(goal: both ≤ 1)")
     out = write_results("usd_read", {"frames": args.frames, "source": args.source.name, "sizes": sizes,
-                                     "results": results, "ratios": ratios})
+                                     "results": results, "ratios": ratios, "load_average_1min": load})
     print(f"wrote {out}")
 
 

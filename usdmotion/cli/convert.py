@@ -43,11 +43,13 @@ def convert(
         from usdmotion.ops.up_axis import convert_up_axis
 
         motion = convert_up_axis(motion, to_up_axis.value)
+    summary = (f"{int((~motion.end_sites).sum())} joints (+{int(motion.end_sites.sum())} end sites), "
+               f"{motion.n_frames} frames at {motion.fps:.6g} fps ({motion.duration:.2f} s), "
+               f"{motion.meters_per_unit:g} m/unit, {motion.up_axis}-up, root offset {motion.root_offset}")
+    handed_over = [motion]
+    del motion  # the writer holds the only reference: a long take's arrays are freed while it writes
     with progress(f"writing {output.name}"):
-        problems = convert_motion(motion, output, mesh, validate)
+        problems = convert_motion(handed_over, output, mesh, validate)
     for problem in problems:
         typer.echo(f"usdmotion: warning: {output}: {problem}", err=True)
-    typer.echo(f"wrote {output}: {int((~motion.end_sites).sum())} joints (+{int(motion.end_sites.sum())} end sites), "
-               f"{motion.n_frames} frames at {motion.fps:.6g} fps ({motion.duration:.2f} s), "
-               f"{motion.meters_per_unit:g} m/unit, {motion.up_axis}-up, root offset {motion.root_offset} "
-               f"[{time.perf_counter() - start:.2f} s]")
+    typer.echo(f"wrote {output}: {summary} [{time.perf_counter() - start:.2f} s]")

@@ -160,10 +160,15 @@ def _say_meshes_dropped(motion: Motion, path: Path, why: str) -> None:
                       f"{why} (write .usd/.usda/.usdc/.usdz to keep them)", UsdMotionWarning, stacklevel=3)
 
 
-def write_motion(motion: Motion, path: str | os.PathLike, **options) -> Path:
-    """Write ``motion`` as BVH, USD or glTF, chosen by the extension of ``path`` (atomically)."""
+def write_motion(motion: Motion | list[Motion], path: str | os.PathLike, **options) -> Path:
+    """Write ``motion`` as BVH, USD or glTF, chosen by the extension of ``path`` (atomically).
+
+    ``motion`` may be a one-item list handing the motion over (the USD writer frees a long
+    take's arrays before filling its layer, see :func:`usdmotion.io.usd.write_usd`)."""
     path = Path(path)
     kind = _kind(path)  # only the writer of that format is imported (see _read)
+    if kind != "usd" and isinstance(motion, list):
+        motion = motion.pop()
     if kind == "bvh":
         from usdmotion.io.bvh_write import write_bvh
 

@@ -234,7 +234,7 @@ def rotations_from_channels(values: np.ndarray, channels: tuple[tuple[str, ...],
 
 
 #: Frames converted at a time (the Euler → quaternion temporaries scale with it, not the take).
-_BLOCK_FRAMES = 32_768
+_BLOCK_FRAMES = 8192
 
 
 def _positions(values: np.ndarray, columns: dict[str, int], base: np.ndarray, add: bool) -> np.ndarray:

@@ -5,7 +5,7 @@ Two paths, fastest first:
 1. NumPy's C text reader (``np.loadtxt`` on the bytes, whitespace-separated, no comment
    character): any runs of spaces and tabs, ``\\r\\n`` line ends and blank lines; floats
    correctly rounded, like ``float()``. It reads the buffer in chunks (no per-line Python
-   objects) and needs no pyarrow: pyarrow's CSV reader, used here before, cost 0.03 s of
+   objects; the file's bytes shared, not copied, see :func:`_reader`) and needs no pyarrow: pyarrow's CSV reader, used here before, cost 0.03 s of
    import on every BVH read and more CPU time than this on large files
    (``benchmarks/startup.py``, ``benchmarks/parse_convert.py``).
 2. Only when a file is broken (a row of another length, a token that is not a number,
@@ -45,10 +45,25 @@ def _fast_parse(buf: bytes, n_channels: int) -> np.ndarray | None:
     if n_channels == 0 or _DIGIT.search(buf) is None:
         return None
     try:
-        values = np.loadtxt(io.BytesIO(buf), dtype=np.float64, comments=None, ndmin=2, encoding="utf-8")
+        values = np.loadtxt(_reader(buf), dtype=np.float64, comments=None, ndmin=2, encoding="utf-8")
     except ValueError:  # a row of another length, a non-number, invalid UTF-8 (UnicodeDecodeError)
         return None
     return values if values.size and values.shape[1] == n_channels else None
+
+
+def _reader(buf: bytes | memoryview) -> io.BytesIO:
+    """``buf`` as a binary file, without a copy of a long take's rows: ``BytesIO`` shares a
+    ``bytes`` object until written to (it copies anything else, a memoryview included), so
+    a view that ends a ``bytes`` object (the rows of a file's bytes) is read from its offset."""
+    owner = buf.obj if isinstance(buf, memoryview) else buf
+    if isinstance(owner, bytes) and owner is not buf:
+        whole, view = np.frombuffer(owner, np.uint8), np.frombuffer(buf, np.uint8)
+        start = view.ctypes.data - whole.ctypes.data
+        if 0 <= start and start + view.size == whole.size:
+            stream = io.BytesIO(owner)
+            stream.seek(start)
+            return stream
+    return io.BytesIO(buf)
 
 
 def _line_scan(buf: bytes, n_channels: int, first_line: int, path: str | None,

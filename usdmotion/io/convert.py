@@ -38,10 +38,14 @@ def kept_for(motion: Motion, output: str | os.PathLike) -> Motion:
     return dataclasses.replace(motion, source_channels=None)
 
 
-def convert_motion(motion: Motion, output: str | os.PathLike, mesh: bool = False, validate: bool = True) -> list[str]:
+def convert_motion(motion: Motion | list[Motion], output: str | os.PathLike, mesh: bool = False,
+                   validate: bool = True) -> list[str]:
     """Write ``motion`` to ``output`` (format by extension, atomically); return validation problems.
 
     Args:
+        motion: the motion, or a one-item list holding the caller's only reference: handed
+            over, a long take's arrays are freed while its samples are written (USD output,
+            see :func:`usdmotion.io.usd.write_usd`).
         mesh: add a volumetric body mesh skinned to the skeleton (USD and glTF outputs).
         validate: run ``pxr.UsdValidation`` on a USD output; the problems are returned, not raised.
     """
@@ -50,7 +54,7 @@ def convert_motion(motion: Motion, output: str | os.PathLike, mesh: bool = False
     if mesh:
         from usdmotion.skin import build_body  # --mesh only
 
-        body = build_body(motion)
+        body = build_body(motion[0] if isinstance(motion, list) else motion)
         if output.suffix.lower() in GLTF_SUFFIXES:
             options["body"] = body
         else:

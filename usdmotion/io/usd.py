@@ -23,6 +23,8 @@ from __future__ import annotations
 import os
 import shutil
 import tempfile
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -32,7 +34,7 @@ from usdmotion.io.atomic import atomic_output
 from usdmotion.io.usd_ar import ar_quick_look_problems, finish_stage
 from usdmotion.io.usd_read import read_usd_skeleton
 from usdmotion.io.usd_skin import add_skinned_meshes
-from usdmotion.kinematics import compose_transforms, rest_pose
+from usdmotion.kinematics import compose_transforms, position_bounds, rest_pose
 from usdmotion.motion import Motion
 from usdmotion.usd_diagnostics import usd_error_message
 
@@ -85,9 +87,44 @@ def _stage_name(path: Path, name: str | None) -> str:
     return _identifier(name or path.stem.split(".")[0] or "Motion")
 
 
-def define_skeleton(stage, motion: Motion, root_path: str):
+@dataclass
+class FrameSamples:
+    """A take's animation as the USD writer needs it, chunk by chunk in frame order.
+
+    Attributes:
+        n_frames: ``F``.
+        chunks: ``(translations, rotations xyzw (n, J, 4))`` float32 per chunk of ``n``
+            frames (see :func:`float32_samples`): ``translations`` is ``(n, J, 3)``, or
+            ``(n, 3)`` root positions when every other joint sits at its offset.
+        blend_shape_weights: ``(F, S)`` or ``None``.
+    """
+
+    n_frames: int
+    chunks: Iterable[tuple[np.ndarray, np.ndarray]]
+    blend_shape_weights: np.ndarray | None = None
+
+    @classmethod
+    def of(cls, motion: Motion, made_now: bool = False) -> FrameSamples:
+        """``motion``'s samples: made a chunk at a time while they are written, or with
+        ``made_now`` all at once, each chunk let go once written (:func:`_drained`), so the
+        motion's float64 arrays can be freed before the writing starts."""
+        chunks = (float32_samples(motion, start, start + _CHUNK_FRAMES)
+                  for start in range(0, motion.n_frames, _CHUNK_FRAMES))
+        return cls(motion.n_frames, _drained(list(chunks)) if made_now else chunks, motion.blend_shape_weights)
+
+
+def _drained(items: list) -> Iterator:
+    """Yield ``items`` in order, removing each from the list (nothing else keeps it)."""
+    items.reverse()
+    while items:
+        yield items.pop()
+
+
+def define_skeleton(stage, motion: Motion, root_path: str, frames: FrameSamples | None = None):
     """Author SkelRoot, Skeleton and SkelAnimation for ``motion`` under ``root_path``.
 
+    ``frames``: the animation's samples when ``motion`` no longer holds them (only its
+    skeleton is read then; see :func:`write_usd`); default: ``FrameSamples.of(motion)``.
     Returns the ``UsdSkel.Skeleton``.
     """
     from pxr import Sdf, UsdGeom, UsdSkel, Vt
@@ -98,8 +135,9 @@ def define_skeleton(stage, motion: Motion, root_path: str):
     UsdGeom.SetStageMetersPerUnit(stage, motion.meters_per_unit)
     stage.SetTimeCodesPerSecond(motion.fps)
     stage.SetFramesPerSecond(motion.fps)
+    frames = FrameSamples.of(motion) if frames is None else frames
     stage.SetStartTimeCode(0)
-    stage.SetEndTimeCode(max(motion.n_frames - 1, 0))
+    stage.SetEndTimeCode(max(frames.n_frames - 1, 0))
 
     tokens = Vt.TokenArray(joint_path_tokens(motion.joint_names, motion.parents))
     skel = UsdSkel.Skeleton.Define(stage, f"{root_path}/Skeleton")
@@ -126,23 +164,29 @@ def define_skeleton(stage, motion: Motion, root_path: str):
     binding.CreateAnimationSourceRel().SetTargets([anim.GetPath()])
 
     weights_path = None
-    if motion.blend_shape_weights is not None:
+    if frames.blend_shape_weights is not None:
         anim.CreateBlendShapesAttr(Vt.TokenArray(list(motion.blend_shape_names)))
         weights_path = anim.CreateBlendShapeWeightsAttr().GetPath()
     layer = stage.GetRootLayer()
     t_path, r_path = translations_attr.GetPath(), rotations_attr.GetPath()
-    if motion.n_frames == 0:
-        translations_attr.Set(Vt.Vec3fArray.FromNumpy(motion.offsets.astype(np.float32)))
+    offsets = motion.offsets.astype(np.float32)
+    if frames.n_frames == 0:
+        translations_attr.Set(Vt.Vec3fArray.FromNumpy(offsets))
         rotations_attr.Set(Vt.QuatfArray.FromNumpy(np.tile(np.float32([0, 0, 0, 1]), (motion.n_joints, 1))))
     set_sample, vec3f, quatf = layer.SetTimeSample, Vt.Vec3fArray.FromNumpy, Vt.QuatfArray.FromNumpy
     with Sdf.ChangeBlock():
-        for start in range(0, motion.n_frames, _CHUNK_FRAMES):  # float32 copies of one chunk at a time
-            translations, rotations = _float32_samples(motion, start, start + _CHUNK_FRAMES)
+        start = 0
+        for translations, rotations in frames.chunks:
+            if translations.ndim == 2:  # root positions: every other joint at its offset
+                root, translations = translations, np.empty(rotations.shape[:2] + (3,), np.float32)
+                translations[:] = offsets
+                translations[:, 0] = root
             for k, (t, r) in enumerate(zip(translations, rotations), start):  # one time sample per frame:
                 set_sample(t_path, float(k), vec3f(t))                          # the USD API's unit
                 set_sample(r_path, float(k), quatf(r))
+            start += len(rotations)
         if weights_path is not None:
-            weights = motion.blend_shape_weights.astype(np.float32)
+            weights = frames.blend_shape_weights.astype(np.float32)
             for k, w in enumerate(weights):
                 set_sample(weights_path, float(k), Vt.FloatArray.FromNumpy(w))
     return skel
@@ -152,15 +196,16 @@ def define_skeleton(stage, motion: Motion, root_path: str):
 _CHUNK_FRAMES = 4096
 
 
-def _float32_samples(motion: Motion, start: int, stop: int) -> tuple[np.ndarray, np.ndarray]:
-    """``(translations (n, J, 3), rotations xyzw (n, J, 4))`` float32 of frames ``start:stop``."""
+def float32_samples(motion: Motion, start: int, stop: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(translations, rotations xyzw (n, J, 4))`` float32 of frames ``start:stop``:
+    ``translations`` ``(n, J, 3)`` when joints other than the root move, else the root's
+    ``(n, 3)`` (the others sit at their offsets)."""
     stop = min(stop, motion.n_frames)
     if motion.joint_translations is not None:
         translations = motion.joint_translations[start:stop].astype(np.float32)
+        translations[:, 0] = motion.root_translation[start:stop]
     else:
-        translations = np.empty((stop - start, motion.n_joints, 3), np.float32)
-        translations[:] = motion.offsets.astype(np.float32)
-    translations[:, 0] = motion.root_translation[start:stop]
+        translations = motion.root_translation[start:stop].astype(np.float32)
     wxyz = motion.rotations[start:stop]
     rotations = np.empty(wxyz.shape, np.float32)  # wxyz → xyzw and float32 in one pass (same values)
     rotations[..., :3] = wxyz[..., 1:]
@@ -168,12 +213,17 @@ def _float32_samples(motion: Motion, start: int, stop: int) -> tuple[np.ndarray,
     return translations, rotations
 
 
-def write_usd(motion: Motion, path: str | os.PathLike, name: str | None = None,
+def write_usd(motion: Motion | list[Motion], path: str | os.PathLike, name: str | None = None,
               decorate=None) -> Path:
     """Write ``motion`` as a UsdSkel stage (``.usda``, ``.usdc``, ``.usd`` or ``.usdz``).
 
     Args:
-        motion: the motion.
+        motion: the motion, or a one-item list handing it over: the writer takes it out,
+            makes its float32 samples and bounds, and keeps only its skeleton, so the
+            take's float64 arrays are freed (when the list held the caller's last
+            reference) before the samples fill the USD layer. A long take's peak memory is
+            then the layer plus the samples, not the layer plus the motion
+            (``benchmarks/huge_inputs.py``). The file is the same either way.
         path: output file; the extension picks the format. Written atomically.
         name: SkelRoot prim name (default: the file stem, made a valid identifier).
         decorate: optional ``callable(stage, skeleton)`` that adds prims (e.g. a skinned
@@ -185,8 +235,14 @@ def write_usd(motion: Motion, path: str | os.PathLike, name: str | None = None,
     ext = path.suffix.lower()
     if ext not in USD_EXTENSIONS:
         raise OutputError(f"{path}: unknown USD extension {ext!r} (use {', '.join(USD_EXTENSIONS)})")
+    handed_over = isinstance(motion, list)
+    motion = motion.pop() if handed_over else motion
     _check_float32(motion, path)
     root_path = "/" + _stage_name(path, name)
+    frames = FrameSamples.of(motion, made_now=handed_over)
+    bounds = position_bounds(motion) if motion.n_frames else None
+    if handed_over:
+        motion = motion.sliced(0, 0)  # the skeleton: the take's arrays go with the caller's last reference
     with atomic_output(path) as tmp:
         layer_path = tmp
         scratch = None
@@ -195,13 +251,13 @@ def write_usd(motion: Motion, path: str | os.PathLike, name: str | None = None,
             layer_path = scratch / (path.stem + ".usdc")
         try:
             stage = Usd.Stage.CreateNew(str(layer_path))
-            skel = define_skeleton(stage, motion, root_path)
+            skel = define_skeleton(stage, motion, root_path, frames)
             if motion.meshes:
                 add_skinned_meshes(stage, skel, motion, path)
             if decorate is not None:
                 decorate(stage, skel)
 
-            finish_stage(stage, skel, motion)
+            finish_stage(stage, skel, motion, bounds)
             stage.GetRootLayer().Save()
             del stage
             if ext == ".usdz":

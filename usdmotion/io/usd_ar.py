@@ -44,20 +44,23 @@ UNCHECKED = (
 DEFAULT_COLOR = (0.62, 0.62, 0.62)
 
 
-def finish_stage(stage, skeleton, motion) -> None:
-    """Author ``kind``, ``extent``/``extentsHint`` and materials (see the module docstring)."""
+def finish_stage(stage, skeleton, motion, bounds: tuple[np.ndarray, np.ndarray] | None = None) -> None:
+    """Author ``kind``, ``extent``/``extentsHint`` and materials (see the module docstring).
+    ``bounds``: ``position_bounds`` of the animation when ``motion`` holds only its skeleton."""
     from pxr import Kind, Usd
 
     root = skeleton.GetPrim().GetParent()
     Usd.ModelAPI(root).SetKind(Kind.Tokens.component)
-    _extent(stage, root, motion)
+    _extent(stage, root, motion, bounds)
     _materials(stage, root)
 
 
-def _extent(stage, root, motion) -> None:
+def _extent(stage, root, motion, bounds) -> None:
     from pxr import Gf, UsdGeom, UsdSkel, Vt
 
-    if motion.n_frames:
+    if bounds is not None:
+        lo, hi = bounds
+    elif motion.n_frames:
         lo, hi = position_bounds(motion)
     else:  # no time samples: the stage shows the rest pose (define_skeleton's defaults)
         rest = rest_pose(motion)[1]

@@ -143,16 +143,18 @@ def fold_skeleton_transform(world: np.ndarray, rotations: np.ndarray, translatio
                             offsets: np.ndarray, roots: np.ndarray, path: Path, prim):
     """Fold the Skeleton prim's world transform ``(T, 4, 4)`` into the joints.
 
-    ``rotations (T, J, 4)`` wxyz and ``translations (T, J, 3)`` are local (skeleton space);
-    ``offsets (J, 3)`` rest translations. A uniform scale ``s`` multiplies every translation
-    and offset; the rotation and translation apply to the ``roots``. Returns new arrays.
+    ``rotations (T, J, 4)`` wxyz and ``translations (T, J, 3)`` (float32 or float64) are local
+    (skeleton space); ``offsets (J, 3)`` rest translations. A uniform scale ``s`` multiplies
+    every translation and offset; the rotation and translation apply to the ``roots``.
+    Returns new arrays (float64 translations), or the same when ``world`` is the identity.
+    ``world`` may be one transform broadcast over the frames (stride 0): it is checked once.
     """
+    world = world[:1] if world.strides[0] == 0 else world  # one transform broadcast over the frames
     s = uniform_scale(world, path, prim)
     if np.allclose(world, np.eye(4), rtol=0, atol=1e-12):
         return rotations, translations, offsets
     q_world = decompose(np.ascontiguousarray(world))[0]
-    if not np.all(s == 1.0):
-        translations = translations * s[:, None, None]
+    translations = translations * s[:, None, None] if not np.all(s == 1.0) else translations.astype(np.float64)
     rotations[:, roots] = quat_mul(q_world[:, None], rotations[:, roots])
     translations[:, roots] = world[:, None, :3, 3] + quat_rotate(q_world[:, None], translations[:, roots])
     return rotations, translations, offsets * s[0]
@@ -216,6 +218,7 @@ def read_usd_skeleton(stage, path: Path, skeleton: str | None = None, resample: 
     names = np.array(joint_names(skel, tokens, custom), dtype=object)
     end_sites, channels = trusted_layout(custom, parents, path, where)
     if roots.size > 1:
+        translations = translations.astype(np.float64, copy=False)
         order, parents, rotations, translations, offsets = merge_roots(parents, rotations, translations, offsets, rest_q)
         names, end_sites, channels = names[order], end_sites[order], None
         warnings.warn(f"{path}: skeleton {where} has {roots.size} root joints; {names[0]} is the root and "
@@ -223,18 +226,20 @@ def read_usd_skeleton(stage, path: Path, skeleton: str | None = None, resample: 
                       "(world positions kept)", UsdMotionWarning, stacklevel=3)
     names = tuple(str(n) for n in names)
     meshes = _meshes(skel, query, tokens, names, order if roots.size > 1 else None, offsets, times)
-    moving = np.abs(translations[:, 1:] - offsets[None, 1:]).max(initial=0.0) > 1e-5 * max(
-        1.0, float(np.abs(offsets).max(initial=0.0)))
-    rotations.setflags(write=False)  # handed over to the Motion without a copy
-    translations.setflags(write=False)
+    moving = _joints_move(translations, offsets)
+    root_translation = translations[:, 0].astype(np.float64)
+    translations = translations.astype(np.float64, copy=False) if moving else None
+    for owned in (rotations, root_translation, translations):  # handed over to the Motion without a copy
+        if owned is not None:
+            owned.setflags(write=False)
     return Motion(
         joint_names=names,
         parents=parents,
         offsets=offsets,
         rotations=rotations,
-        root_translation=translations[:, 0],
+        root_translation=root_translation,
         fps=tcps / step,
-        joint_translations=translations if moving else None,
+        joint_translations=translations,
         end_sites=end_sites,
         meters_per_unit=stage_meters_per_unit(stage, path),
         up_axis="Z" if UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.z else "Y",
@@ -244,6 +249,18 @@ def read_usd_skeleton(stage, path: Path, skeleton: str | None = None, resample: 
         blend_shape_names=shape_names,
         blend_shape_weights=shape_weights,
     )
+
+
+def _joints_move(translations: np.ndarray, offsets: np.ndarray) -> bool:
+    """Whether a non-root joint's translation ``(T, J, 3)`` leaves its offset ``(J, 3)`` by more
+    than ``1e-5`` of the largest offset (or 1): from the per-joint extremes over the frames,
+    no temporary of the take's size (``max |t - o|`` is ``max(max t - o, o - min t)``)."""
+    if translations.shape[0] == 0 or translations.shape[1] < 2:
+        return False
+    rest = offsets[1:]
+    high, low = translations[:, 1:].max(axis=0), translations[:, 1:].min(axis=0)
+    drift = max(float(np.abs(high - rest).max()), float(np.abs(low - rest).max()))
+    return drift > 1e-5 * max(1.0, float(np.abs(offsets).max(initial=0.0)))
 
 
 def _meshes(skel, query, tokens, names, order, offsets, times):

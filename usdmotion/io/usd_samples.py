@@ -56,28 +56,51 @@ def frame_times(anim, path: Path, resample: bool = False) -> tuple[np.ndarray, f
     return times[0] + step * np.arange(count), step
 
 
-def read_samples(attr, times: np.ndarray, n: int, width: int, path: Path) -> np.ndarray:
-    """``attr`` at every time in ``times`` as float32 ``(max(T, 1), n, width)``, checked for
-    length and finiteness; read once and broadcast when it has no time samples."""
+def read_samples(attr, times: np.ndarray, n: int, width: int, path: Path, dtype=np.float32) -> np.ndarray:
+    """``attr`` at every time in ``times`` as ``(max(T, 1), n, width)`` of ``dtype``, checked for
+    length and finiteness; read once and broadcast (float32, read-only) when it has no time samples."""
     where = str(attr.GetPath())
     if attr.GetNumTimeSamples() == 0 or times.size == 0:
         out = _rows(attr.Get(), n, width, path, where, None)
         return np.broadcast_to(out, (max(times.size, 1), n, width))
     from pxr import Usd
 
-    out = np.empty((times.size, n, width), np.float32)
-    query, t = Usd.AttributeQuery(attr), None
-    try:
-        for i, t in enumerate(times.tolist()):
-            value = query.Get(t)
-            if value is None or len(value) != n:
-                raise UsdReadError(path, f"{where} at time {t:g} has {0 if value is None else len(value)} "
-                                         f"values for {n} joints")
-            out[i] = value
-    except (ValueError, TypeError) as exc:
-        raise UsdReadError(path, f"{where} at time {t:g} is not an array of {width}-vectors ({exc})") from None
+    out = np.empty((times.size, n, width), dtype)
+    query = Usd.AttributeQuery(attr)
+    if not _copy_samples(query, times, out):
+        _raise_first_bad_sample(query, times, n, width, path, where)
     _check_finite(out, path, where, times)
     return out
+
+
+def _copy_samples(query, times: np.ndarray, out: np.ndarray) -> bool:
+    """Copy the value of ``query`` at each of ``times (T,)`` into ``out (T, n, width)`` through the
+    buffer protocol (nothing per sample in Python but a shape check and the copy); ``False`` at
+    the first value that is not ``(n, width)`` numbers."""
+    shape = out.shape[1:]
+    try:
+        for i, value in enumerate(map(np.asarray, map(query.Get, times.tolist()))):
+            if value.shape != shape:
+                return False
+            out[i] = value
+    except (ValueError, TypeError):
+        return False
+    return True
+
+
+def _raise_first_bad_sample(query, times: np.ndarray, n: int, width: int, path: Path, where: str) -> None:
+    """Raise the error naming the first sample at ``times`` that is not ``n`` ``width``-vectors
+    (the slow, exact scan behind :func:`read_samples`'s bulk copy)."""
+    for t in times.tolist():
+        value = query.Get(t)
+        if value is None or len(value) != n:
+            raise UsdReadError(path, f"{where} at time {t:g} has {0 if value is None else len(value)} "
+                                     f"values for {n} joints")
+        try:
+            np.asarray(value, np.float32).reshape(n, width)
+        except (ValueError, TypeError) as exc:
+            raise UsdReadError(path, f"{where} at time {t:g} is not an array of {width}-vectors ({exc})") from None
+    raise UsdReadError(path, f"{where}: its time samples cannot be read as arrays of {width}-vectors")
 
 
 def _rows(value, n: int, width: int, path: Path, where: str, t) -> np.ndarray:
@@ -92,6 +115,8 @@ def _rows(value, n: int, width: int, path: Path, where: str, t) -> np.ndarray:
 
 
 def _check_finite(values: np.ndarray, path: Path, where: str, times: np.ndarray) -> None:
+    if values.size == 0 or np.isfinite(values.min()) and np.isfinite(values.max()):  # NaN propagates; no temporaries
+        return
     bad = ~np.isfinite(values).all(axis=-1)
     if bad.any():
         f, j = np.argwhere(bad)[0]
@@ -101,9 +126,11 @@ def _check_finite(values: np.ndarray, path: Path, where: str, times: np.ndarray)
 
 def animation_arrays(anim, tokens: list[str], times: np.ndarray, rest_rotations: np.ndarray,
                      rest_translations: np.ndarray, path: Path) -> tuple[np.ndarray, np.ndarray]:
-    """Local ``(rotations wxyz (T, J, 4), translations (T, J, 3))`` float64 of the skeleton
+    """Local ``(rotations wxyz (T, J, 4) float64, translations (T, J, 3))`` of the skeleton
     joints ``tokens`` over ``times``: the animation's values where it animates a joint,
     the rest transform (``rest_rotations (J, 4)``, ``rest_translations (J, 3)``) elsewhere.
+    ``translations`` is float32 as read when the animation animates every joint in order
+    (exact in float64; half the memory of a long take's float64 copy), else float64.
 
     An animation without rotations or translations, or with arrays whose length is not
     its joint count, non-finite values or rotations far from unit length, is refused.
@@ -125,22 +152,23 @@ def animation_arrays(anim, tokens: list[str], times: np.ndarray, rest_rotations:
         if not attr.HasValue():
             raise UsdReadError(path, f"{anim.GetPath()}: the SkelAnimation has no {name} "
                                      "(usd-core would show the rest pose)")
-    quats = read_samples(anim.GetRotationsAttr(), times, len(anim_joints), 4, path)
-    quats = quats if same_order else quats[:, src]
-    norms = np.sqrt(np.einsum("...i,...i->...", quats, quats, dtype=np.float64))
-    bad = np.abs(norms - 1.0) > UNIT_TOL
-    if bad.any():
-        f, j = np.argwhere(bad)[0]
+    quats = read_samples(anim.GetRotationsAttr(), times, len(anim_joints), 4, path, np.float64)
+    wxyz = _wxyz(quats if same_order else quats[:, src])
+    del quats
+    norms = np.einsum("...i,...i->...", wxyz, wxyz)
+    np.sqrt(norms, out=norms)
+    worst = max(float(norms.max()) - 1.0, 1.0 - float(norms.min())) if norms.size else 0.0  # max |‖q‖ - 1|
+    if worst > UNIT_TOL:
+        f, j = np.argwhere(np.abs(norms - 1.0) > UNIT_TOL)[0]
         at = f" at time {times[f]:g}" if times.size else ""
         raise UsdReadError(path, f"{anim.GetRotationsAttr().GetPath()}{at}: rotation of joint "
                                  f"{anim_joints[int(src[j])]} has length {norms[f, j]:.6g}, not a unit quaternion")
-    wxyz = np.empty(quats.shape, np.float64)  # (x, y, z, w) → (w, x, y, z) in one pass
-    wxyz[..., 0], wxyz[..., 1:] = quats[..., 3], quats[..., :3]
-    if np.abs(norms - 1.0).max(initial=0.0) > 1e-6:
+    if worst > 1e-6:
         wxyz /= norms[..., None]
+    del norms
     shifts = read_samples(anim.GetTranslationsAttr(), times, len(anim_joints), 3, path)
     if same_order:
-        rotations, translations = wxyz, shifts.astype(np.float64)
+        rotations, translations = wxyz, shifts  # float32 as read: float64 only of what the Motion keeps
     else:
         rotations = np.broadcast_to(rest_rotations, (n_frames, n_joints, 4)).copy()
         translations = np.broadcast_to(rest_translations, (n_frames, n_joints, 3)).copy()
@@ -150,6 +178,21 @@ def animation_arrays(anim, tokens: list[str], times: np.ndarray, rest_rotations:
     return rotations, translations
 
 
+def _wxyz(xyzw: np.ndarray, block: int = 8192) -> np.ndarray:
+    """Float64 wxyz ``(T, J, 4)`` from xyzw quaternions: reordered in place, ``block`` frames at
+    a time, when ``xyzw`` is a writable float64 array (no second copy of a long take)."""
+    if not (xyzw.dtype == np.float64 and xyzw.flags.writeable and xyzw.flags.c_contiguous):
+        out = np.empty(xyzw.shape, np.float64)
+        out[..., 0], out[..., 1:] = xyzw[..., 3], xyzw[..., :3]
+        return out
+    for start in range(0, xyzw.shape[0], block):
+        part = xyzw[start:start + block]
+        w = part[..., 3].copy()
+        part[..., 1:] = part[..., :3].copy()
+        part[..., 0] = w
+    return xyzw
+
+
 def _check_scales(anim, times: np.ndarray, n: int, path: Path) -> None:
     import warnings
 
@@ -157,7 +200,8 @@ def _check_scales(anim, times: np.ndarray, n: int, path: Path) -> None:
     if not attr.HasValue():
         return
     scales = read_samples(attr, times, n, 3, path)
-    worst = float(np.abs(scales - 1.0).max(initial=0.0))
+    scales = scales[:1] if scales.strides[0] == 0 else scales  # one value broadcast over the frames
+    worst = max(float(scales.max()) - 1.0, 1.0 - float(scales.min())) if scales.size else 0.0
     if worst > 1e-3:
         warnings.warn(f"{path}: {attr.GetPath()}: joint scales (up to {1 + worst:.4g}) are ignored",
                       UsdMotionWarning, stacklevel=5)

@@ -46,10 +46,16 @@ export function mountEdits(studio) {
       panel.groups = []; panel.bands = [];
       say(e.message, true);
     }
-    $('eq-group').replaceChildren(...panel.groups.map(g => new Option(g.label, g.name)));
-    const names = take.joint_names.filter((n, j) => !take.end_sites[j]);
-    $('disp-joint').replaceChildren(...names.map(n => new Option(n, n)));
+    // a choice made while the answer was on its way survives the refill
+    refill('eq-group', panel.groups.map(g => new Option(g.label, g.name)));
+    refill('disp-joint', take.joint_names.filter((n, j) => !take.end_sites[j]).map(n => new Option(n, n)));
     drawSliders();
+  }
+
+  function refill(id, options) {
+    const chosen = $(id).value;
+    $(id).replaceChildren(...options);
+    if (options.some(o => o.value === chosen)) $(id).value = chosen;
   }
 
   function say(text, error = false) {
