@@ -319,9 +319,10 @@ async function start() {
   wire();
   $('segment-panel').open = state.seg;
   $('segment-panel').addEventListener('toggle', () => writeUrl());
-  // while the take's arrays are on their way: the shaders of the take's first frame (a linked take
-  // waits for them; the compare ghost's are compiled once it is drawn)
-  player.warmUp(state.take ? [1] : [1, 0.7]);
+  // the shaders of a take's first frame, compiled while the user picks one; a linked take's arrays are
+  // there by the time three.js is (the server has read the file meanwhile): its first frame compiles
+  // them, a warm-up would only draw one frame more (the compare ghost's are compiled once it is drawn)
+  if (!state.take) player.warmUp();
   const opening = state.take ? openTake(state.take, false) : null;
   await library.load();  // the list of takes, at once
   if (opening) {  // a linked take is drawn before the library is read and the panels are loaded
