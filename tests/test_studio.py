@@ -99,7 +99,8 @@ def test_only_requests_naming_this_machine_are_answered(studio):
     from usdmotion.studio.server import host_names
 
     base, port = studio[0], urlsplit(studio[0]).port
-    for host in ("evil.example", f"evil.example:{port}", f"127.0.0.1.evil.example:{port}", f"LOCALHOST.evil:{port}", ""):
+    for host in ("evil.example", f"evil.example:{port}", f"127.0.0.1.evil.example:{port}", f"LOCALHOST.evil:{port}",
+                 ""):
         for target in ("/api/takes", "/", "/app/main.js", "/api/positions?take=0/walk.bvh"):
             status, body = raw_get(base, target, host_header=host)
             assert status == 400, (host, target)
