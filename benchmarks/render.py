@@ -14,7 +14,8 @@ MSAA 4 (``--msaa 4``; Mesa's llvmpipe offers 4 samples only, so ``--msaa 2`` is 
 ``--long N`` also renders N frames at 320×240 to check that memory stays flat (RSS
 sampled every 500 frames). ``--ab N`` renders only the anti-aliasing rows (FXAA tiles,
 FXAA full-screen, no AA), alternating, N times each, and prints each one's median (for a
-machine loaded by other jobs); JSON to ``benchmarks/results/render_ab.json``. Prints a table; writes ``benchmarks/results/render.json``.
+machine loaded by other jobs); JSON to ``benchmarks/results/render_ab.json``.
+Prints a table; writes ``benchmarks/results/render.json``.
 """
 
 from __future__ import annotations
