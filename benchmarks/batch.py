@@ -30,6 +30,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import pickle
 import shutil
 import statistics
 import subprocess
@@ -76,7 +77,8 @@ def build_library(folder: Path, takes: int, frames: int) -> tuple[int, int]:
 
 def sequential(library: Path, out: Path, operation: str) -> dict:
     """The plain loop: the library calls the batch task makes, one take after another
-    (warnings recorded, as the batch records them, not printed)."""
+    (warnings recorded, as the batch records them, not printed). Before the clock, the
+    process is prepared as a Dask worker prepares itself (imports, one take)."""
     from usdmotion.anthropometry import body_model
     from usdmotion.errors import InputError
     from usdmotion.io import read_motion
@@ -84,11 +86,11 @@ def sequential(library: Path, out: Path, operation: str) -> dict:
     from usdmotion.ops.analyse import analyse
     from usdmotion.ops.analyse.report import summary, write_kinematics, write_summary
 
-    from usdmotion.batch.engine import OPERATION_MODULES, _import_modules
+    from usdmotion.batch.engine import prepare_process
 
-    _import_modules(OPERATION_MODULES[operation])  # as warm_up does on the workers, before the clock
+    prepare_process(operation)  # as warm_up does on the workers, before the clock
     files = sorted(library.rglob("*.bvh"))
-    start, cpu = time.perf_counter(), time.process_time()
+    start, cpu, thread = time.perf_counter(), time.process_time(), time.thread_time()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         for path in files:
@@ -105,18 +107,21 @@ def sequential(library: Path, out: Path, operation: str) -> dict:
             kin = analyse(motion, body=body, source=str(path))
             write_summary(summary(kin, None, str(path)), f"{dst}.summary.json")
             write_kinematics(kin, f"{dst}.parquet", None, str(path))
-    return {"wall_s": time.perf_counter() - start, "cpu_s": time.process_time() - cpu, "warnings": len(caught)}
+    return {"wall_s": time.perf_counter() - start, "cpu_s": time.process_time() - cpu,
+            "thread_cpu_s": time.thread_time() - thread, "warnings": len(caught)}
 
 
-#: One thread everywhere, as in a worker of the local cluster (set before NumPy/Arrow load).
-ONE_THREAD = {"USDMOTION_THREADS": "1", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+#: One thread everywhere, as in a worker of the local cluster (set before NumPy/Arrow/USD load).
+ONE_THREAD = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 
 
 def sequential_one_thread(library: Path, out: Path, operation: str) -> dict:
     """:func:`sequential` in a fresh subprocess with :data:`ONE_THREAD`."""
     code = ("import json, sys; sys.path.insert(0, sys.argv[1]); import batch; "
             "print(json.dumps(batch.sequential(batch.Path(sys.argv[2]), batch.Path(sys.argv[3]), sys.argv[4])))")
-    env = {**os.environ, **ONE_THREAD}
+    from usdmotion.batch.engine import WORKER_ENV
+
+    env = {**os.environ, **ONE_THREAD, **WORKER_ENV}
     env.pop("MALLOC_TRIM_THRESHOLD_", None)  # a LocalCluster started earlier in this process leaks Dask's setting
     done = subprocess.run([sys.executable, "-c", code, str(Path(__file__).parent), str(library), str(out), operation],
                           env=env, capture_output=True, text=True, check=True)
@@ -138,10 +143,11 @@ def _tree_cpu() -> dict[int, float]:
     return out
 
 
-def _rss() -> int:
+def _rss(pids: list[int]) -> float:
+    """Mean resident memory of the processes ``pids`` (bytes), read from /proc by psutil."""
     import psutil
 
-    return psutil.Process().memory_info().rss
+    return sum(psutil.Process(pid).memory_info().rss for pid in pids) / len(pids)
 
 
 def _noop(i: int) -> int:
@@ -158,15 +164,17 @@ def batch_run(library: Path, out: Path, operation: str, workers: int, task_bytes
 
     t0 = time.perf_counter()
     with dask_client(workers) as client:
-        warm_up(client, operation)  # imports, once per worker (the loop below already has them)
-        startup = time.perf_counter() - t0
+        t1 = time.perf_counter()
+        warm_up(client, operation)  # imports and one take, once per worker (as the loops before their clock)
+        startup, warm = time.perf_counter() - t0, time.perf_counter() - t1
         samples, stop = [], threading.Event()
+        pids = list(client.run(os.getpid).values())
 
-        def sample() -> None:
+        def sample() -> None:  # from /proc, not through Dask: no messages to the busy workers
             while not stop.is_set():
                 try:
-                    samples.append((time.perf_counter(), sum(client.run(_rss).values()) / workers))
-                except Exception:  # noqa: BLE001 - a sample lost while the cluster is busy
+                    samples.append((time.perf_counter(), _rss(pids)))
+                except Exception:  # noqa: BLE001 - a worker restarted meanwhile
                     pass
                 stop.wait(0.5)
 
@@ -193,7 +201,8 @@ def batch_run(library: Path, out: Path, operation: str, workers: int, task_bytes
     cpu_s = sum(r["cpu_seconds"] or 0 for r in rows)
     mem = [m for _, m in samples]
     tenth = max(1, len(mem) // 10)  # memory after the first tenth of the run against the last tenth
-    return {"wall_s": result.seconds, "startup_s": startup, "takes": len(rows), "tasks": tasks,
+    return {"wall_s": result.seconds, "startup_s": startup, "warm_up_s": warm, "takes": len(rows), "tasks": tasks,
+            "workers": workers, "result_bytes_per_take": statistics.mean(len(pickle.dumps(r)) for r in rows),
             "failed": len(result.failed),
             "frames": sum(r.get("frames") or 0 for r in rows), "task_s": task_s,
             "cpu_ms_per_take": 1000 * total_cpu / len(rows), "in_task_cpu_ms_per_take": 1000 * cpu_s / len(rows),
@@ -226,6 +235,17 @@ def run_operation(library: Path, work: Path, operation: str, takes: int, frames:
     return runs
 
 
+def cpu_bound_ratio(runs: dict, name: str) -> float:
+    """The wall-time ratio to the loop the run would give if every process had a core of its
+    own (a quiet machine): the loop's main-thread CPU (its wall time there; its helper threads
+    run beside it) against the CPU of every process of the run spread over its workers."""
+    loop = runs["sequential"]["thread_cpu_s"] / runs["sequential"]["takes"]
+    r = runs[name]
+    if "thread_cpu_s" in r:  # a loop: its main thread
+        return loop / (r["thread_cpu_s"] / r["takes"])
+    return loop / (r["cpu_ms_per_take"] / 1000 / r["workers"])
+
+
 def table_rows(operation: str, runs: dict) -> list[list]:
     seq, one = runs["sequential"]["wall_s"], runs["sequential-1t"]["wall_s"]
     rows = []
@@ -234,10 +254,31 @@ def table_rows(operation: str, runs: dict) -> list[list]:
                if "rss_first_mib" in r else "-")
         rows.append([operation, name, f"{r['wall_s']:.1f}", f"{r['takes'] / r['wall_s']:.1f}",
                      f"{r['frames'] / r['wall_s']:.0f}", f"{seq / r['wall_s']:.2f}x", f"{one / r['wall_s']:.2f}x",
-                     f"{r['cpu_ms_per_take']:.1f}", _fmt(r.get("client_cpu_ms_per_take")),
+                     f"{cpu_bound_ratio(runs, name):.2f}x", f"{r['cpu_ms_per_take']:.1f}", _fmt(r.get("client_cpu_ms_per_take")),
                      f"{r.get('startup_s', 0):.1f}", _fmt(r.get("idle_per_take_ms")), _fmt(r.get("noop_task_ms")),
                      rss, f"{r['load_before']:.1f}"])
     return rows
+
+
+def per_take_costs(results: dict) -> dict:
+    """Where a take's time goes in a worker against the loop (ms of CPU per take unless said)."""
+    costs = {}
+    for op, runs in results.items():
+        seq, one, d1, d2 = (runs[k] for k in ("sequential", "sequential-1t", "dask-1", "dask-2"))
+        costs[op] = {"loop_main_thread": 1000 * seq["thread_cpu_s"] / seq["takes"],
+                     "loop_all_threads": seq["cpu_ms_per_take"], "one_thread_loop": one["cpu_ms_per_take"],
+                     "worker_in_task": d1["in_task_cpu_ms_per_take"], "dask1_all_processes": d1["cpu_ms_per_take"],
+                     "dask2_all_processes": d2["cpu_ms_per_take"], "dask2_client_and_scheduler": d2["client_cpu_ms_per_take"],
+                     "noop_task_round_trip_ms": d2["noop_task_ms"], "warm_up_s": d2["warm_up_s"],
+                     "result_bytes_per_take": d2["result_bytes_per_take"], "takes_per_task": d2["takes"] / d2["tasks"]}
+        c = costs[op]
+        print(f"  {op}: loop {c['loop_main_thread']:.1f} ms main thread ({c['loop_all_threads']:.1f} all threads), "
+              f"1-thread loop {c['one_thread_loop']:.1f}; in a worker {c['worker_in_task']:.1f} in-task, all processes "
+              f"{c['dask1_all_processes']:.1f} (1 worker) / {c['dask2_all_processes']:.1f} (2; client + scheduler "
+              f"{c['dask2_client_and_scheduler']:.1f}); per task: no-op round trip {c['noop_task_round_trip_ms']:.1f} ms, "
+              f"{c['takes_per_task']:.0f} takes, {c['result_bytes_per_take']:.0f} B of result per take; "
+              f"warm-up (imports + one take) {c['warm_up_s']:.1f} s per cluster")
+    return costs
 
 
 def on_paper(results: dict) -> dict:
@@ -277,11 +318,12 @@ def main() -> None:
             table += table_rows(operation, results[operation])
         print_table(f"usdmotion batch on {machine()['cpus']} cores ({takes} takes, {frames} frames); CPU: of every "
                     "process of the run, ms per take", ["operation", "engine", "wall s", "takes/s", "frames/s",
-                    "vs loop", "vs 1t loop", "CPU ms/take", "client CPU", "start-up+imports s", "idle ms/take",
+                    "vs loop", "vs 1t loop", "CPU-bound vs loop", "CPU ms/take", "client CPU", "start-up+warm-up s", "idle ms/take",
                     "no-op ms/task", "worker RSS MiB first→last", "load avg"], table)
+        costs = per_take_costs(results)
         paper = on_paper(results)
         path = write_results("batch", {"takes": takes, "frames": frames, "frames_per_take": args.frames,
-                                       "results": results, "on_paper_takes_per_s": paper})
+                                       "results": results, "per_take_costs": costs, "on_paper_takes_per_s": paper})
         print(f"wrote {path}")
     finally:
         shutil.rmtree(work, ignore_errors=True)

@@ -126,39 +126,85 @@ def _peak(values: np.ndarray, kin: Kinematics) -> dict:
     return {"value": round(float(values[i]), 6), "frame": int(kin.frames[i]), "time": round(float(kin.time[i]), 6)}
 
 
+def _peaks(values: np.ndarray, kin: Kinematics) -> list[dict]:
+    """:func:`_peak` of every row of ``values (J, F)`` at once: the first frame of each
+    row's largest value, NaN ignored; all ``None`` for a row without a finite value."""
+    n_rows, n_frames = values.shape
+    if n_frames == 0:
+        return [{"value": None, "frame": None, "time": None} for _ in range(n_rows)]
+    best = np.argmax(np.where(np.isnan(values), -np.inf, values), axis=1)  # (J,) nanargmax, NaN-only rows aside
+    found = np.isfinite(values).any(axis=1).tolist()
+    peak = values[np.arange(n_rows), best].tolist()
+    frames, times = kin.frames[best].tolist(), kin.time[best].tolist()
+    return [{"value": round(v, 6), "frame": f, "time": round(t, 6)} if ok else {"value": None, "frame": None, "time": None}
+            for ok, v, f, t in zip(found, peak, frames, times)]
+
+
 def _range(values: np.ndarray) -> dict:
     return {"min": round(float(np.min(values)), 4), "max": round(float(np.max(values)), 4),
             "range": round(float(np.ptp(values)), 4)}
+
+
+def _ranges(values: np.ndarray) -> list[dict]:
+    """:func:`_range` of every row of ``values (N, F)`` at once."""
+    low, high = values.min(axis=1), values.max(axis=1)
+    return [{"min": round(a, 4), "max": round(b, 4), "range": round(r, 4)}
+            for a, b, r in zip(low.tolist(), high.tolist(), (high - low).tolist())]
 
 
 def angle_range(degrees: np.ndarray) -> dict:
     """:func:`_range` of an angle series ``(F,)`` in degrees, unwrapped first: a joint
     swinging from 170° to -170° (through 180°) has a 20° range, not 340°. The series is
     shifted by whole turns so its median lies in [-180°, 180°]."""
-    unwrapped = np.unwrap(np.asarray(degrees, np.float64), period=360.0)
-    return _range(unwrapped - 360.0 * np.round(np.median(unwrapped) / 360.0))
+    return _ranges(_unwrapped_rows(np.asarray(degrees, np.float64)[None]))[0]
+
+
+def _unwrapped_rows(degrees: np.ndarray) -> np.ndarray:
+    """Angle series ``(N, F)`` in degrees, each unwrapped and shifted by whole turns so its
+    median lies in [-180°, 180°] (see :func:`angle_range`)."""
+    unwrapped = np.unwrap(degrees, period=360.0, axis=1)
+    return unwrapped - 360.0 * np.round(np.median(unwrapped, axis=1, keepdims=True) / 360.0)
+
+
+def _row_norms(vectors: np.ndarray) -> np.ndarray:
+    """Lengths of ``vectors (F, J, 3)`` as contiguous rows ``(J, F)``."""
+    return np.ascontiguousarray(np.linalg.norm(vectors, axis=2).T)
+
+
+def joint_summaries(kin: Kinematics, joints: list[int]) -> list[dict]:
+    """Peaks and ranges of the ``joints`` (see :func:`summary`), one dict each, computed over
+    all frames and joints at once: speeds (length units/s) and accelerations from
+    ``(F, J, 3)`` vectors, angular speeds (deg/s), Euler ranges of motion (deg, unwrapped),
+    bend ranges (deg) of joints whose bend is defined at every frame."""
+    idx = np.asarray(joints, dtype=np.intp)
+    speed = _row_norms(kin.velocities[:, idx])                                  # (J, F)
+    path = _row_norms(np.diff(kin.positions[:, idx], axis=0)).sum(axis=1)      # (J,)
+    peaks = {key: _peaks(_row_norms(vectors[:, idx]), kin) for key, vectors in (
+        ("peak_speed", kin.velocities), ("peak_acceleration", kin.accelerations), ("peak_angular_speed", kin.omega))}
+    out = [{"peak_speed": s, "mean_speed": round(m, 6), "path_length": round(p, 6), "peak_acceleration": a,
+            "peak_angular_speed": w}
+           for s, m, p, a, w in zip(peaks["peak_speed"], speed.mean(axis=1).tolist(), path.tolist(),
+                                    peaks["peak_acceleration"], peaks["peak_angular_speed"])]
+    real = [k for k, j in enumerate(joints) if not kin.end_sites[j]]
+    if real:
+        ridx = idx[real]
+        relative = _peaks(_row_norms(kin.omega_rel[:, ridx]), kin)
+        euler = np.ascontiguousarray(np.moveaxis(kin.euler[:, ridx], 0, -1), dtype=np.float64)  # (R, 3, F)
+        ranges = _ranges(_unwrapped_rows(euler.reshape(-1, kin.n_frames)))
+        for n, k in enumerate(real):
+            out[k]["peak_relative_angular_speed"] = relative[n]
+            out[k]["range_of_motion"] = {"euler_order": kin.euler_orders[joints[k]],
+                                         **{axis: ranges[3 * n + "xyz".index(axis)] for axis in AXES}}
+    bend = np.ascontiguousarray(kin.bend[:, idx].T)                              # (J, F)
+    whole = np.flatnonzero(np.isfinite(bend).all(axis=1))
+    for k, entry in zip(whole.tolist(), _ranges(bend[whole])):
+        out[k]["bend"] = entry
+    return out
 
 
 def joint_summary(kin: Kinematics, j: int) -> dict:
-    """Peaks and ranges of one joint (see :func:`summary`)."""
-    speed = np.linalg.norm(kin.velocities[:, j], axis=1)
-    step = np.linalg.norm(np.diff(kin.positions[:, j], axis=0), axis=1)
-    out = {
-        "peak_speed": _peak(speed, kin),
-        "mean_speed": round(float(speed.mean()), 6),
-        "path_length": round(float(step.sum()), 6),
-        "peak_acceleration": _peak(np.linalg.norm(kin.accelerations[:, j], axis=1), kin),
-        "peak_angular_speed": _peak(np.linalg.norm(kin.omega[:, j], axis=1), kin),
-    }
-    if not kin.end_sites[j]:
-        order = kin.euler_orders[j]
-        out["peak_relative_angular_speed"] = _peak(np.linalg.norm(kin.omega_rel[:, j], axis=1), kin)
-        out["range_of_motion"] = {"euler_order": order, **{axis: angle_range(kin.euler[:, j, "xyz".index(axis)])
-                                                           for axis in AXES}}
-    bend = kin.bend[:, j]
-    if np.all(np.isfinite(bend)):
-        out["bend"] = _range(bend)
-    return out
+    """Peaks and ranges of one joint (see :func:`joint_summaries`)."""
+    return joint_summaries(kin, [j])[0]
 
 
 def com_summary(kin: Kinematics) -> dict | None:
@@ -211,7 +257,8 @@ def meta(kin: Kinematics, source: str | None = None) -> dict:
 def summary(kin: Kinematics, joints: list[int] | None = None, source: str | None = None) -> dict:
     """JSON-ready summary: ``meta``, per-joint peaks and ranges, and ``com``."""
     idx = list(range(len(kin.joint_names))) if joints is None else list(joints)
-    return {"meta": meta(kin, source), "joints": {kin.joint_names[j]: joint_summary(kin, j) for j in idx},
+    return {"meta": meta(kin, source),
+            "joints": {kin.joint_names[j]: entry for j, entry in zip(idx, joint_summaries(kin, idx))},
             "com": com_summary(kin)}
 
 
