@@ -62,7 +62,8 @@ def retarget(
                                                                "Default: automatic.", show_default=False)] = None,
     method: Annotated[Method, typer.Option(help="lm: batched Levenberg-Marquardt (default); adam: the paper's "
                                                 "per-frame Adam, lr 0.1, 500 iterations (reference).")] = Method.lm,
-    iterations: Annotated[int | None, typer.Option(help="lm: at most this many (default 100; stops when converged); "
+    iterations: Annotated[int | None, typer.Option(help="lm: at most this many (default 100; stops when converged; "
+                                                        "with contacts: after the plain solve); "
                                                         "adam: exactly this many (default 500).",
                                                    show_default=False, min=0)] = None,
     lengths: Annotated[Lengths, typer.Option(help="Bone lengths: 'source' (mean source distance, the paper's step 1) "

@@ -40,7 +40,7 @@ from usdmotion.ops.retarget import report as retarget_report
 from usdmotion.ops.retarget.contact_terms import FLOOR_WEIGHT, ROOT_SCALES, body_share, contact_terms, moved_joints
 from usdmotion.ops.retarget.jointmap import JointMap, resolve_map
 from usdmotion.ops.retarget.losses import frame_losses
-from usdmotion.ops.retarget.problem import Problem
+from usdmotion.ops.retarget.problem import CONTACT_ITERATIONS, CONTACT_WARM_ITERATIONS, Problem
 from usdmotion.ops.retarget.aim import aim_init, identity_quats as _identity
 from usdmotion.ops.retarget.rotation_terms import contact_prior_share, smooth_scale
 from usdmotion.ops.retarget.solve import solve
@@ -355,7 +355,9 @@ def retarget(source: Motion, target: Motion | None = None, *, remove=(), add=(),
             automatic otherwise).
         method: ``"lm"`` (default) or ``"adam"`` (the paper's reference).
         iterations: LM's maximum (default 100; it stops once every frame has converged) or
-            Adam's iteration count (default 500).
+            Adam's iteration count (default 500). With contacts: the maximum of the contact
+            phase (default :data:`~usdmotion.ops.retarget.problem.CONTACT_ITERATIONS`, after
+            :data:`~usdmotion.ops.retarget.problem.CONTACT_WARM_ITERATIONS` plain ones).
         lengths: ``"source"`` (step 1: mean source bone lengths) or ``"target"`` (keep).
         directions: ``"auto"``/``"mean"``/``"rest"`` for derived rigs (see module doc).
         scale: ``"units"``, ``"auto"`` or a number (targets from files only).
@@ -415,7 +417,8 @@ def retarget(source: Motion, target: Motion | None = None, *, remove=(), add=(),
     prepared = time.perf_counter()
     q, t, solution = _solve(setup, q0, terms, rot_terms, method, iterations, progress)
     motion = _output_motion(source, setup, q, t)
-    report = retarget_report.build(source, setup, motion, q0, init_name, method, iterations,
+    cap = CONTACT_ITERATIONS if terms is not None and iterations is None else iterations
+    report = retarget_report.build(source, setup, motion, q0, init_name, method, cap,
                                    {"setup": prepared - start, "compile": solution.compile_s, "solve": solution.run_s},
                                    source_path, target_path)
     report["chunks"] = {"frames_per_call": solution.chunk, "calls": solution.calls}
@@ -445,10 +448,11 @@ def _solve(setup: Setup, q0: np.ndarray, terms, rot_terms, method: str, iteratio
         mapped_w = problem.weights * body_share(setup, terms.joints)  # the body above the legs rides on the root
         weights = np.concatenate([np.broadcast_to(mapped_w, (len(q0), len(mapped_w))), terms.weights], axis=1)
         floor = terms.floor - centre[:, terms.up]
-    if terms is not None:  # warm start: the plain solve first, then the contacts move what they must
+    if terms is not None:  # warm start: the plain solve, then the contacts move what they must
         plain = solve(_problem(setup, None, *rot_terms), q0, t0, targets[:, : len(setup.mapped)], method=method,
-                      iterations=iterations)
-        solution = solve(problem, plain.q, plain.t, targets, method=method, iterations=iterations,
+                      iterations=CONTACT_WARM_ITERATIONS)
+        solution = solve(problem, plain.q, plain.t, targets, method=method,
+                         iterations=CONTACT_ITERATIONS if iterations is None else iterations,
                          progress=progress, weights=weights, floor=floor)
         solution = dataclasses.replace(solution, compile_s=solution.compile_s + plain.compile_s,
                                        run_s=solution.run_s + plain.run_s,

@@ -225,9 +225,10 @@ def make_lm_step(problem: Problem, linear: str = "tree"):
     return lm_step
 
 
-def _make_lm(problem: Problem, iterations: int, linear: str = "tree"):
-    """A jitted ``(q, t, targets, w, floor, smooth_mask) -> (q, t, loss (B,), initial loss (B,),
-    iterations run)`` LM solver (at most ``iterations``; stops early when every frame has
+def _make_lm(problem: Problem, linear: str = "tree"):
+    """A jitted ``(q, t, targets, w, floor, smooth_mask, iterations) -> (q, t, loss (B,),
+    initial loss (B,), iterations run)`` LM solver (at most ``iterations``, a runtime int32
+    scalar so one compiled function serves every cap; stops early when every frame has
     converged). ``targets (B, M+C, 3)`` and ``w (B, M+C)``: positions and weights of the
     mapped and contact points; ``floor (B,)``: floor height (centred like the positions);
     ``smooth_mask (B,)``: frames whose neighbours are real (the temporal term).
@@ -248,7 +249,7 @@ def _make_lm(problem: Problem, iterations: int, linear: str = "tree"):
     smoothness = make_rotation_terms(problem) if smoothing else None
     rot_j = jnp.asarray(problem.rot_joints)
 
-    def solve(q, t, targets, w, floor, smooth_mask):
+    def solve(q, t, targets, w, floor, smooth_mask, iterations):
         world_q, world_p, r, loss, w_all = evaluate(q, t, targets, w, floor)
         prior = world_q[:, rot_j] if problem.anchored else None
         if smoothing:
@@ -308,11 +309,12 @@ _EXECUTABLES: dict = {}
 def _executable(problem: Problem, method: str, iterations: int, lr: float, args) -> tuple[object, float]:
     """``(compiled function, seconds spent compiling)`` for these argument shapes (cached)."""
 
-    key = (problem.key(), method, iterations, lr, tuple((a.shape, str(a.dtype)) for a in args))
+    key = (problem.key(), method, None if method == "lm" else iterations, lr,
+           tuple((a.shape, str(a.dtype)) for a in args))
     if key in _EXECUTABLES:
         return _EXECUTABLES[key], 0.0
     start = time.perf_counter()
-    fn = _make_lm(problem, iterations) if method == "lm" else make_adam(problem, iterations, lr)
+    fn = _make_lm(problem) if method == "lm" else make_adam(problem, iterations, lr)
     compiled = fn.lower(*args).compile()
     if len(_EXECUTABLES) >= 32:
         _EXECUTABLES.pop(next(iter(_EXECUTABLES)))
@@ -424,7 +426,7 @@ def solve(problem: Problem, q0: np.ndarray, t0: np.ndarray, targets: np.ndarray,
             inner = np.zeros(chunk, np.float32)  # frames with two real neighbours in this chunk
             inner[1: stop - start - 1] = 1.0
             args += [jnp.asarray(weights[pad], jnp.float32), jnp.asarray(floor[pad], jnp.float32),
-                     jnp.asarray(inner)]
+                     jnp.asarray(inner), jnp.int32(iterations)]
         fn, seconds = _executable(problem, method, iterations, float(lr), args)
         compile_s += seconds
         began = time.perf_counter()
