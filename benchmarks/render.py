@@ -8,10 +8,14 @@ the CPU, or a GPU's driver; the table names it).
 Goal (issue 4): ≥ 25 frames/s end to end at 1280×720, skinned body, no shadows, 2 cores.
 Issue 20 adds, at 1280×720 in the same run: angles + plot panel + compare ghost ≥ 20 frames/s,
 a 2×2 layout ≥ 10 frames/s, and anti-aliasing on/off (ratios to the plain case, the peer):
-the default FXAA pass ("plain"), none ("no AA", ``--no-fxaa``) and MSAA 4 (``--msaa 4``; Mesa's
-llvmpipe offers 4 samples only, so ``--msaa 2`` is the same).
+the default FXAA pass drawn on the tiles near drawn pixels ("plain"), the same pass over the whole
+picture (the default before, same output: "FXAA full-screen"), none ("no AA", ``--no-fxaa``) and
+MSAA 4 (``--msaa 4``; Mesa's llvmpipe offers 4 samples only, so ``--msaa 2`` is the same).
 ``--long N`` also renders N frames at 320×240 to check that memory stays flat (RSS
-sampled every 500 frames). Prints a table; writes ``benchmarks/results/render.json``.
+sampled every 500 frames). ``--ab N`` renders only the anti-aliasing rows (FXAA tiles,
+FXAA full-screen, no AA), alternating, N times each, and prints each one's median (for a
+machine loaded by other jobs); JSON to ``benchmarks/results/render_ab.json``.
+Prints a table; writes ``benchmarks/results/render.json``.
 """
 
 from __future__ import annotations
@@ -49,9 +53,11 @@ def gl_renderer() -> str:
     return name
 
 
-#: Feedback-video cases at 1280x720 (issue 20): RenderOptions extras and whether to compare.
+#: Feedback-video cases at 1280x720 (issue 20): RenderOptions extras and whether to compare
+#: ("fxaa_tiles": usdmotion.render.gl.FXAA_TILES for that case).
 FEATURES = {
-    "plain": ({}, False),  # the default look: FXAA pass, anti-aliased grid texture
+    "plain": ({}, False),  # the default look: FXAA pass on the tiles near drawn pixels, widened grid lines
+    "FXAA full-screen": ({"fxaa_tiles": False}, False),
     "no AA": ({"fxaa": False}, False),
     "msaa4": ({"msaa": 4}, False),
     "angles+panel+ghost": ({"angles": ("knee_left", "elbow_right"), "panel": "angle:knee_left,speed:RightHand"},
@@ -63,20 +69,32 @@ FEATURES = {
 
 def run_case(motion, width, height, shadows, frames, tmp: Path, case: str = "", extra: dict | None = None,
              other=None) -> dict:
-    from usdmotion.render import RenderOptions, render_motion
+    from usdmotion.render import RenderOptions, gl, render_motion
 
     settings = dict(width=width, height=height, start=1, end=1 + frames * 2, fps=60.0, shadows=shadows,
                     camera="side")
     settings.update(extra or {})
+    gl.FXAA_TILES = settings.pop("fxaa_tiles", True)
     options = RenderOptions(**settings)
-    result = render_motion(motion, tmp / f"bench_{width}x{height}_{int(shadows)}_{case}.mp4", options, other)
+    cpu = []  # process CPU seconds (all threads: llvmpipe's, the encoder's) after the first and the last frame
+
+    def progress(current, total, message):  # a usdmotion.progress.Progress
+        if current == 1 or current == total:
+            cpu.append(sum(os.times()[:2]))
+
+    try:
+        result = render_motion(motion, tmp / f"bench_{width}x{height}_{int(shadows)}_{case}.mp4", options, other,
+                               progress=progress)
+    finally:
+        gl.FXAA_TILES = True
     t = result.timings
     n = result.frames
     loop = result.seconds - t["build"]
     return {"case": case or "plain", "size": f"{width}x{height}", "shadows": shadows, "frames": n,
             "fps_end_to_end": n / loop, "fps_incl_body_build": result.fps,
             "body_build_s": t["build"], "skin_ms": 1e3 * t["skin"] / n, "render_ms": 1e3 * t["render"] / n,
-            "encode_ms": 1e3 * t["encode"] / n, "loop_s": loop}
+            "encode_ms": 1e3 * t["encode"] / n, "loop_s": loop,
+            "cpu_ms_per_frame": 1e3 * (cpu[-1] - cpu[0]) / max(n - 1, 1)}
 
 
 def run_long(motion, count: int, tmp: Path) -> dict:
@@ -97,10 +115,37 @@ def run_long(motion, count: int, tmp: Path) -> dict:
             "rss_growth_mib_after_first_1000": samples[-1][1] - samples[1][1] if len(samples) > 2 else None}
 
 
+AA_ROWS = ("plain", "FXAA full-screen", "no AA")
+
+
+def run_ab(motion, repeats: int, frames: int, tmp: Path) -> None:
+    """The anti-aliasing rows at 1280x720, alternating, ``repeats`` times each; medians."""
+    runs = {name: [] for name in AA_ROWS}
+    for _ in range(repeats):
+        for name in AA_ROWS:
+            case = run_case(motion, 1280, 720, False, frames, tmp, name, FEATURES[name][0])
+            runs[name].append({"fps_end_to_end": case["fps_end_to_end"], "cpu_ms_per_frame": case["cpu_ms_per_frame"],
+                               "load_average": os.getloadavg()[0]})
+    median = {name: {key: float(np.median([r[key] for r in rows])) for key in rows[0]} for name, rows in runs.items()}
+    print(f"anti-aliasing rows at 1280x720, {frames} frames, alternating, {repeats} times each (medians)")
+    print(f"{'case':>18} {'fps e2e':>8} {'/ no AA':>8} {'CPU ms/frame':>12} {'/ no AA':>8} {'load':>5}")
+    base = median["no AA"]
+    for name, m in median.items():
+        print(f"{name:>18} {m['fps_end_to_end']:>8.1f} {m['fps_end_to_end'] / base['fps_end_to_end']:>8.2f} "
+              f"{m['cpu_ms_per_frame']:>12.1f} {m['cpu_ms_per_frame'] / base['cpu_ms_per_frame']:>8.2f} "
+              f"{m['load_average']:>5.1f}")
+    out = ROOT / "benchmarks" / "results" / "render_ab.json"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps({"benchmark": "render --ab", "input": WALK.name, "frames": frames, "runs": runs,
+                               "medians": median, "cpu_count": os.cpu_count()}, indent=2))
+    print(f"wrote {out}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--frames", type=int, default=120, help="output frames per case")
     parser.add_argument("--long", type=int, default=0, help="also render this many frames to check memory")
+    parser.add_argument("--ab", type=int, default=0, help="only the anti-aliasing rows, alternating, N times each")
     args = parser.parse_args()
     import tempfile
 
@@ -108,6 +153,8 @@ def main() -> None:
 
     motion = read_motion(WALK, units="asf")
     tmp = Path(tempfile.mkdtemp(prefix="usdmotion-bench-"))
+    if args.ab:
+        return run_ab(motion, args.ab, args.frames, tmp)
     renderer = gl_renderer()
     cases = [run_case(motion, w, h, s, args.frames, tmp) for (w, h) in ((1280, 720), (640, 480)) for s in (False, True)]
     # a second take for the ghost: the same walk, 0.3 m aside
@@ -145,10 +192,12 @@ def main() -> None:
           f"({cases[0]['fps_end_to_end']:.1f} fps)")
     plain = features[0]["fps_end_to_end"]
     print(f"\nfeedback-video cases at 1280x720, same run (ratio to 'plain' = the peer):")
-    print(f"{'case':>20} {'fps e2e':>8} {'ratio':>6} {'render ms':>9} {'encode ms':>9}")
+    print(f"{'case':>20} {'fps e2e':>8} {'ratio':>6} {'render ms':>9} {'encode ms':>9} {'CPU ms/frame':>12}")
     for c in features:
         print(f"{c['case']:>20} {c['fps_end_to_end']:>8.1f} {c['fps_end_to_end'] / plain:>6.2f} "
-              f"{c['render_ms']:>9.1f} {c['encode_ms']:>9.1f}")
+              f"{c['render_ms']:>9.1f} {c['encode_ms']:>9.1f} {c['cpu_ms_per_frame']:>12.1f}")
+    print("(CPU ms/frame: the process's CPU time, all threads, per frame after the first: what the frame costs "
+          "the machine, much less sensitive than frames/s to other jobs' load)")
     for goal, met in result["feature_goals"].items():
         print(f"goal {goal}: {'met' if met else 'NOT met'}")
     if args.long:

@@ -2,17 +2,20 @@
 
     .venv/bin/python benchmarks/startup.py [--repeat 5]
 
-Each command runs as a new process (what a user waits for), ``--repeat`` times after one
-warm-up, the trees (``--tree``) taking turns; the table shows medians, each command's time
-over the bare interpreter's in the same run, and its CPU time (user + system, all threads:
+Each command runs as a new process running the console script's code (``usdmotion.__main__.run``:
+what a user waits for, interpreter exit included), ``--repeat`` times after one warm-up,
+the trees (``--tree``) taking turns; the table shows medians, each command's time over the
+bare interpreter's in the same run, and its CPU time (user + system, all threads:
 steadier than wall time on a loaded machine). Modules run from bytecode, as from an installed package (pip compiles it at
 install): the processes write and read it under a temporary ``PYTHONPYCACHEPREFIX``, so
 the warm-up compiles and ``PYTHONDONTWRITEBYTECODE`` in the caller's environment does not
 make every run recompile the package (about 0.02 s; ``--no-bytecode`` measures that way).
 A second table splits the ``convert`` → USDC process's import time (``-X importtime``,
 self times summed by top-level package, the least of three extra runs; its total exceeds
-the timed runs' because of the instrumentation). Inputs: the bundled CMU walk tiled to 1,730 frames (1.3 MB, for ``info``)
-and to 5,000 frames (31 joints, for ``convert`` to .usdc and .bvh). Goals (issue 11):
+the timed runs' because of the instrumentation), and a third the CPU time and page faults of
+each step of one such convert done step by step (imports, read, write, validate; not the
+command-line parsing and exit). Inputs: the bundled CMU walk tiled to 1,730 frames (1.3 MB,
+for ``info``) and to 5,000 frames (31 joints, for ``convert`` to .usdc and .bvh). Goals (issue 11):
 ``info`` ≤ 0.30 s and ``convert`` to USDC ≤ 0.40 s whole process. The modules each command
 imported are listed too (``-X importtime`` would slow the run; ``sys.modules`` at exit).
 """
@@ -38,7 +41,8 @@ WALK = REPO / "usdmotion" / "data" / "cmu_12_01_walk.bvh"
 HEAVY = ("jax", "pandas", "pyrender", "scipy.signal", "scipy", "pxr", "pyarrow", "matplotlib", "numpy", "pydantic", "rich")
 #: Every row imports usdmotion from PYTHONPATH (this checkout's or a --tree's), not through the editable install's finder.
 NO_EDITABLE = "sys.meta_path[:] = [f for f in sys.meta_path if 'editable' not in getattr(f, '__module__', '')]"
-CLI = f"import sys; {NO_EDITABLE}; from usdmotion.cli import main; sys.exit(main(sys.argv[1:]))"
+#: The console script's own code (``usdmotion = usdmotion.__main__:run``): what a user's process runs, exit included.
+CLI = f"import sys; {NO_EDITABLE}; from usdmotion.__main__ import run; sys.exit(run())"
 MODULES = ("import atexit, sys\n" + NO_EDITABLE + "\n"
            "atexit.register(lambda: print('MODULES', [m for m in {heavy!r} if m in sys.modules], file=sys.stderr))\n"
            "from usdmotion.cli import main; sys.exit(main(sys.argv[1:]))")
@@ -80,6 +84,53 @@ def imported(cli_args: list[str], env: dict | None = None) -> list[str]:
                           env=env, cwd=tempfile.gettempdir())
     line = next(line for line in done.stderr.splitlines() if line.startswith("MODULES"))
     return json.loads(line.split(" ", 1)[1].replace("'", '"'))
+
+
+#: One ``convert`` → .usdc done step by step in a fresh process (the library calls the command makes),
+#: printing the process's CPU time (user + system) and page faults after each step.
+PHASES = """import json, resource, sys, warnings
+def mark(label):
+    r = resource.getrusage(resource.RUSAGE_SELF)
+    marks.append((label, r.ru_utime + r.ru_stime, r.ru_minflt))
+marks = []
+mark("interpreter start-up")
+""" + NO_EDITABLE + """
+import typer, usdmotion.cli.convert
+mark("typer and the CLI modules")
+import numpy
+mark("NumPy")
+import usdmotion.io.convert, usdmotion.io.bvh, usdmotion.io.usd
+mark("usdmotion library modules")
+from pxr import Usd, UsdValidation
+mark("pxr (Usd, UsdValidation and what they load)")
+from usdmotion.io import read_motion, write_motion
+from usdmotion.io.convert import kept_for
+from usdmotion.io.usd import validate_stage
+with warnings.catch_warnings():
+    warnings.simplefilter("ignore")
+    motion = kept_for(read_motion(sys.argv[1]), sys.argv[2])
+mark("read the BVH (parse, Euler to quaternions, units guess)")
+write_motion(motion, sys.argv[2])
+mark("write the .usdc (stage, samples, extent, save)")
+validate_stage(sys.argv[2])
+mark("validate (UsdValidation)")
+print("PHASES " + json.dumps(marks))
+"""
+
+
+def phases(source: Path, output: Path, env: dict, runs: int = 3) -> list[tuple[str, float, int]]:
+    """``(step, CPU s, page faults)`` of :data:`PHASES`, each the least of ``runs`` fresh processes."""
+    least: dict[str, tuple[float, int]] = {}
+    for _ in range(runs):
+        done = subprocess.run([PYTHON, "-c", PHASES, str(source), str(output)], capture_output=True, text=True,
+                              env=env, cwd=tempfile.gettempdir(), check=True)
+        marks = json.loads(next(line for line in done.stdout.splitlines() if line.startswith("PHASES "))[7:])
+        before = (0.0, 0)
+        for label, cpu, faults in marks:
+            step = (cpu - before[0], faults - before[1])
+            least[label] = tuple(map(min, zip(least.get(label, step), step)))
+            before = (cpu, faults)
+    return [(label, cpu, faults) for label, (cpu, faults) in least.items()]
 
 
 def import_breakdown(cli_args: list[str], trees: dict[str, dict], runs: int = 3) -> dict[str, dict[str, float]]:
@@ -137,6 +188,7 @@ def main() -> None:
                 if label + name in measured:
                     results[label + name] = {**measured[label + name], "imports": imported(cli_args, env)}
         breakdown = import_breakdown(cases["usdmotion convert 5000 frames -> .usdc"], trees)
+        steps = {label: phases(convert_file, tmp / "phases.usdc", env) for label, env in trees.items()}
     base = results["python -c pass"]["median_s"]
     rows = [[name, f"{r['median_s']:.3f}", f"{r['min_s']:.3f}", f"{r['median_s'] / base:.1f}x", f"{r['cpu_median_s']:.3f}",
              " ".join(r.get("imports", []))] for name, r in results.items()]
@@ -149,10 +201,19 @@ def main() -> None:
                 ["package"] + [label.rstrip(": ") or "this tree" for label in breakdown],
                 [[g] + [f"{b.get(g, 0.0):.3f}" for b in breakdown.values()] for g in groups[:12]]
                 + [["all imports"] + [f"{sum(b.values()):.3f}" for b in breakdown.values()]])
+    print()
+    by_tree = [{step: (cpu, faults) for step, cpu, faults in tree_steps} for tree_steps in steps.values()]
+    print_table("convert -> .usdc step by step in one process: CPU s (user + system) / page faults, "
+                "least of 3 processes", ["step"] + [label.rstrip(": ") or "this tree" for label in steps],
+                [[step] + [f"{t[step][0]:.3f} / {t[step][1]}" for t in by_tree] for step in by_tree[0]]
+                + [["all"] + [f"{sum(c for c, _ in t.values()):.3f} / {sum(f for _, f in t.values())}"
+                              for t in by_tree]])
     path = write_results("startup", {"repeat": args.repeat, "trees": args.tree, "bytecode": not args.no_bytecode,
                                      "load_average_1min": os.getloadavg()[0],
                                      "goals_s": {"info": 0.30, "convert_usdc": 0.40},
-                                     "results": results, "convert_usdc_import_s": breakdown})
+                                     "results": results, "convert_usdc_import_s": breakdown,
+                                     "convert_usdc_steps": {label.rstrip(": ") or "this tree": t
+                                                            for label, t in steps.items()}})
     print(f"wrote {path}")
 
 

@@ -69,15 +69,18 @@ def serving(app):
         sock.close()
 
 
-def raw_get(base: str, target: str) -> tuple[int, bytes]:
-    """GET ``target`` exactly as written (no client-side normalisation of ``..``)."""
+def raw_get(base: str, target: str, host_header: str | None = None) -> tuple[int, bytes]:
+    """GET ``target`` exactly as written (no client-side normalisation of ``..``), with the
+    ``Host`` header of ``base`` or ``host_header``."""
     import http.client
     from urllib.parse import urlsplit
 
     host = urlsplit(base)
     conn = http.client.HTTPConnection(host.hostname, host.port, timeout=60)
     try:
-        conn.putrequest("GET", target, skip_accept_encoding=True)
+        conn.putrequest("GET", target, skip_accept_encoding=True, skip_host=host_header is not None)
+        if host_header is not None:
+            conn.putheader("Host", host_header)
         conn.endheaders()
         response = conn.getresponse()
         return response.status, response.read()

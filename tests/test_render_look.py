@@ -110,3 +110,51 @@ def test_fxaa_blends_edges_and_leaves_the_rest(shared_file, tmp_path):
     hi = np.maximum.reduce([np.roll(grey, s, a) for s in (-1, 0, 1) for a in (0, 1)])
     after = _grey(images[True])[changed]
     assert ((after >= lo[changed] - 2) & (after <= hi[changed] + 2)).mean() > 0.97
+
+
+def test_fxaa_on_tiles_equals_the_full_screen_pass(shared_file, tmp_path, monkeypatch):
+    """The default FXAA pass runs only on the tiles near drawn pixels; over a walk with its
+    ghost, grid, traces and contact shadow every frame is the full-screen pass's, bit for bit,
+    and both differ from the picture without anti-aliasing; so is a two-view frame with shadows."""
+    from usdmotion.render import gl
+
+    walk = read_motion(shared_file(WALK), units="asf")
+    other = walk.with_frames(walk.rotations, walk.root_translation + np.array([0.4 / walk.meters_per_unit, 0, 0]))
+    options = RenderOptions(width=320, height=240, start=100, end=160, fps=10.0, body_resolution=40,
+                            traces=("LeftHand",), camera="follow")
+    frames = {}
+    for name, tiles, fxaa in (("tiles", True, True), ("full", False, True), ("none", True, False)):
+        monkeypatch.setattr(gl, "FXAA_TILES", tiles)
+        render_motion(walk, tmp_path / f"{name}/####.png", dataclasses.replace(options, fxaa=fxaa), other)
+        frames[name] = np.stack([read_image(path) for path in sorted((tmp_path / name).glob("*.png"))])
+    assert len(frames["tiles"]) == 5  # 59 frames at 120 fps, shown at 10 fps
+    np.testing.assert_array_equal(frames["tiles"], frames["full"])
+    smoothed = (frames["tiles"] != frames["none"]).any(axis=-1).sum(axis=(1, 2))
+    assert (smoothed > 100).all(), smoothed
+    # two views with shadows on a solid floor (every tile kept): still the full-screen pass
+    views = dataclasses.replace(options, shadows=True, layout="1x2", camera="side,front", end=110)
+    for name, tiles in (("tiles2", True), ("full2", False)):
+        monkeypatch.setattr(gl, "FXAA_TILES", tiles)
+        render_motion(walk, tmp_path / f"{name}/####.png", views)
+        frames[name] = read_image(tmp_path / name / "0000.png")
+    np.testing.assert_array_equal(frames["tiles2"], frames["full2"])
+
+
+def test_tile_runs_cover_exactly_the_kept_tiles():
+    """The quads the FXAA pass is drawn over, painted back, are the kept tiles (runs per row)."""
+    from usdmotion.render.gl import tile_runs
+
+    rng = np.random.default_rng(3)
+    keep = rng.random((9, 13)) < 0.4
+    keep[4] = True  # a row that is one run
+    keep[5] = False  # and an empty one
+    quads = tile_runs(keep, tile=4)
+    assert quads.shape[1:] == (6, 2) and quads.dtype == np.float32
+    painted = np.zeros((9 * 4, 13 * 4), int)
+    for quad in quads.astype(int):
+        (x0, y0), (x1, y1) = quad.min(axis=0), quad.max(axis=0)
+        painted[y0:y1, x0:x1] += 1
+    assert painted.max() == 1  # no pixel drawn twice
+    np.testing.assert_array_equal(painted[::4, ::4].astype(bool), keep)
+    np.testing.assert_array_equal(painted, np.kron(keep, np.ones((4, 4), int)))
+    assert len(tile_runs(np.zeros((3, 5), bool))) == 0

@@ -4,6 +4,7 @@ every number it serves is the library's (FK, analysis, DTW alignment, spatial al
 from __future__ import annotations
 
 import json
+import socket
 from urllib.parse import quote
 
 import numpy as np
@@ -88,6 +89,49 @@ def test_requests_are_read_only_and_bounded(studio):
     conn.close()
     many = "&".join(f"id=0/t{i}.bvh" for i in range(201))
     assert raw_get(studio[0], "/api/meta?" + many)[0] == 413
+
+
+def test_only_requests_naming_this_machine_are_answered(studio):
+    """DNS rebinding: a page of evil.example that resolves to 127.0.0.1 sends ``Host: evil.example``;
+    the library must not answer it, and the studio keeps serving its own page."""
+    from urllib.parse import urlsplit
+
+    from usdmotion.studio.server import host_names
+
+    base, port = studio[0], urlsplit(studio[0]).port
+    for host in ("evil.example", f"evil.example:{port}", f"127.0.0.1.evil.example:{port}", f"LOCALHOST.evil:{port}",
+                 ""):
+        for target in ("/api/takes", "/", "/app/main.js", "/api/positions?take=0/walk.bvh"):
+            status, body = raw_get(base, target, host_header=host)
+            assert status == 400, (host, target)
+            assert b"walk" not in body and b"does not answer" in body
+    for host in (f"127.0.0.1:{port}", f"localhost:{port}", "LocalHost", f"[::1]:{port}", "192.168.1.20:8765"):
+        status, body = raw_get(base, "/api/takes", host_header=host)
+        assert status == 200 and b"walk.bvh" in body, host
+    assert raw_get(base, "/")[0] == 200
+    assert host_names("0.0.0.0") == [socket.gethostname().lower()]
+    assert host_names("studio.lab", ["Coach-PC", "[::1]"]) == ["studio.lab", "coach-pc", "::1"]
+
+
+def test_the_rig_column_names_cmu_asf_amc_takes(tmp_path, shared_file):
+    """86_01.amc's bones (lfemur, lclavicle...) fit no automatic-map profile; the library still
+    names their family: the 'asf' profile (used only where named), whose signature they carry."""
+    import shutil
+
+    from usdmotion.skeleton_names import rig_profiles
+    from usdmotion.studio.library import Library
+
+    lib = tmp_path / "lib"
+    lib.mkdir()
+    for name in ("86.asf", "86_01.amc"):
+        shutil.copy(shared_file(f"cmu86/{name}"), lib / name)
+    shutil.copy(WALK, lib / "walk.bvh")
+    library = Library([lib], {"units": "asf"})
+    meta = {e.name: library.metadata(e) for e in library.scan()}
+    names = read_motion(lib / "86_01.amc").joint_names
+    assert set(rig_profiles()["asf"]["signature"]) <= set(names)
+    assert meta["86_01.amc"]["rig"] == "asf" and meta["86_01.amc"]["joints"] == 31
+    assert meta["walk.bvh"]["rig"] == "cmu_cgspeed"  # an automatic-map profile still wins where one fits
 
 
 def test_positions_are_the_library_fk_in_metres(studio):

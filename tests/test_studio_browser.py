@@ -258,11 +258,16 @@ def test_url_reopens_the_same_frame_and_camera(studio, browser, page):
         assert other.input_value("#camera") == "front"
         assert other.evaluate("window.studio.player.cameraPose()") == pose
         assert other.inner_text("#range") == "loop 0–77"
-        # the page asked for the take's arrays and body before its scripts ran, once, and drew into
-        # the WebGL context it opened then
+        # the page asked for the take's arrays before its scripts ran, and for its body once it could
+        # draw (building it would slow the first frame), each once, and drew into the WebGL context it
+        # opened first thing
         assert [asked.count(what) for what in ("skeleton", "positions", "glb")] == [1, 1, 1], asked
-        assert asked.index("glb") < asked.index("takes")
+        assert asked.index("positions") < asked.index("takes") and asked.index("positions") < asked.index("glb")
         assert other.evaluate("window.studio.player.renderer.getContext() === window.early.gl")
+        # the tool panels' modules (and uPlot) are fetched only once the take's first frame is drawn
+        assert other.evaluate("""() => ['app/segment.js', 'app/edits.js', 'app/retarget.js', 'app/video.js',
+            'vendor/uplot/dist/uPlot.esm.js'].map(path => performance.getEntriesByName(new URL(path, location.origin).href)[0])
+            .every(entry => entry && entry.startTime > window.studio.player.firstDrawnAt)""")
         assert other.evaluate("window.studio.player.figure.body !== null")
     finally:
         other.close()

@@ -123,3 +123,17 @@ def test_a_bvh_without_frames_reads_with_the_default_guess(tmp_path):
     path = write_bvh(walk.sliced(0, 0), tmp_path / "empty.bvh")
     motion = read_motion(path)
     assert motion.n_frames == 0 and motion.up_axis == "Y" and motion.meters_per_unit == METERS_PER_UNIT["asf"]
+
+
+def test_the_median_of_the_up_guess_is_numpys_median():
+    """``_median_rows`` (no numpy.ma import) gives ``np.median(a, axis=0)``'s numbers, NaN included."""
+    from usdmotion.units_guess import _median_rows
+
+    rng = np.random.default_rng(11)
+    for n in (1, 2, 3, 4, 100, 101):
+        for _ in range(50):
+            a = rng.normal(size=(n, 3)) * rng.choice([1e-3, 1.0, 1e5])
+            if rng.random() < 0.2:
+                a[rng.integers(n), rng.integers(3)] = np.nan
+            assert np.array_equal(_median_rows(a), np.median(a, axis=0), equal_nan=True)
+

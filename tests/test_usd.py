@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from reference_fk import reference_world_positions, usd_world_positions
@@ -15,6 +17,8 @@ from usdmotion.kinematics import joint_positions
 
 pxr = pytest.importorskip("pxr")
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdSkel, Vt  # noqa: E402
+
+WALK = Path(__file__).resolve().parents[1] / "usdmotion" / "data" / "cmu_12_01_walk.bvh"
 
 # Diverse rigs: CMU, DAZ-style, Bandai (positions on every joint, rest along +X), Rokoko fingers,
 # Z-up inch with mixed orders, 60 joints mixed orders, 6 channels on every joint, Mixamo ':' names,
@@ -73,6 +77,60 @@ def test_stage_metadata_names_and_layout(shared_file, tmp_path):
     from usdmotion.kinematics import rest_positions
 
     assert np.allclose(bind, rest_positions(motion), atol=1e-9)
+
+
+def _authored_by_schema_classes(ours, path) -> None:
+    """``ours`` (a written stage) authored again into ``path`` with usd-core's schema classes
+    (UsdSkel.Root/Skeleton/Animation/BindingAPI, UsdGeom's stage metadata, Boundable and
+    ModelAPI), in write_usd's order, taking every value from ``ours``: the reference for
+    write_usd's generic-API authoring (usdmotion/io/usd_schema.py), which must write the
+    same layer without importing UsdSkel/UsdGeom."""
+    source = Usd.Stage.Open(str(ours))
+    root_in = source.GetDefaultPrim()
+    skel_in, anim_in = UsdSkel.Skeleton(root_in.GetChild("Skeleton")), UsdSkel.Animation(root_in.GetChild("Animation"))
+    stage = Usd.Stage.CreateNew(str(path))
+    root = UsdSkel.Root.Define(stage, root_in.GetPath())
+    stage.SetDefaultPrim(root.GetPrim())
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.GetStageUpAxis(source))
+    UsdGeom.SetStageMetersPerUnit(stage, UsdGeom.GetStageMetersPerUnit(source))
+    for name in ("TimeCodesPerSecond", "FramesPerSecond", "StartTimeCode", "EndTimeCode"):
+        getattr(stage, f"Set{name}")(getattr(source, f"Get{name}")())
+    skel = UsdSkel.Skeleton.Define(stage, skel_in.GetPath())
+    for name in ("Joints", "JointNames", "RestTransforms", "BindTransforms"):
+        getattr(skel, f"Create{name}Attr")(getattr(skel_in, f"Get{name}Attr")().Get())
+    skel.GetPrim().SetCustomDataByKey("usdmotion", skel_in.GetPrim().GetCustomDataByKey("usdmotion"))
+    anim = UsdSkel.Animation.Define(stage, anim_in.GetPath())
+    anim.CreateJointsAttr(anim_in.GetJointsAttr().Get())
+    anim.CreateScalesAttr(anim_in.GetScalesAttr().Get())
+    samples = [(anim.CreateTranslationsAttr(), anim_in.GetTranslationsAttr()),
+               (anim.CreateRotationsAttr(), anim_in.GetRotationsAttr())]
+    UsdSkel.BindingAPI.Apply(skel.GetPrim()).CreateAnimationSourceRel().SetTargets([anim.GetPath()])
+    if anim_in.GetBlendShapesAttr().HasAuthoredValue():
+        anim.CreateBlendShapesAttr(anim_in.GetBlendShapesAttr().Get())
+        samples.append((anim.CreateBlendShapeWeightsAttr(), anim_in.GetBlendShapeWeightsAttr()))
+    for attr, attr_in in samples:
+        for time in attr_in.GetTimeSamples():
+            attr.Set(attr_in.Get(time), time)
+    Usd.ModelAPI(root).SetKind(Usd.ModelAPI(root_in).GetKind())
+    box = UsdGeom.Boundable(root_in).GetExtentAttr().Get()
+    UsdGeom.Boundable(root).CreateExtentAttr(box)
+    UsdGeom.ModelAPI(root).SetExtentsHint(box)
+    stage.GetRootLayer().Save()
+
+
+@pytest.mark.parametrize("weights", [False, True], ids=["skeleton", "blend-shape-weights"])
+def test_the_skeleton_is_authored_as_usd_cores_schema_classes_author_it(tmp_path, weights):
+    import dataclasses
+
+    motion = read_motion(WALK, units="asf").sliced(0, 40)
+    if weights:
+        ramp = np.linspace(0.0, 1.0, motion.n_frames)
+        motion = dataclasses.replace(motion, blend_shape_names=("smile", "blink"),
+                                     blend_shape_weights=np.stack([ramp, 1.0 - ramp], axis=1))
+    for ext in (".usda", ".usdc"):
+        ours = write_usd(motion, tmp_path / f"walk{ext}")
+        _authored_by_schema_classes(ours, tmp_path / f"reference{ext}")
+        assert ours.read_bytes() == (tmp_path / f"reference{ext}").read_bytes(), ext
 
 
 def test_usd_to_motion_to_bvh_round_trip(shared_file, tmp_path):

@@ -15,6 +15,7 @@ from functools import lru_cache
 import numpy as np
 
 from usdmotion.motion import Motion, joint_depths
+from usdmotion.parallel import over_slices
 from usdmotion.rotations import array_namespace, hamilton, quat_to_matrix
 
 
@@ -101,19 +102,29 @@ def fk_arrays(local_rotations, local_translations, parents: np.ndarray):
     return world_q, world_p
 
 
-def position_bounds(motion: Motion, chunk_frames: int = 4096) -> tuple[np.ndarray, np.ndarray]:
+def position_bounds(motion: Motion, chunk_frames: int = 2048) -> tuple[np.ndarray, np.ndarray]:
     """``(low (3,), high (3,))``: the box of every joint's world position over every frame
     (file units) of a motion with at least one frame. Equal to the bounds of
     :func:`joint_positions`, without assembling the ``(F, J, 3)`` array: the FK planes
     of ``chunk_frames`` frames at a time (a long take's planes and local translations for
-    all frames at once were several times its data, the peak of a 1M-frame convert)."""
+    all frames at once were several times its data, the peak of a 1M-frame convert; small
+    chunks reuse the same memory, 4,096 frames at a time cost a fresh page for every temporary),
+    the frames split between threads (:func:`usdmotion.parallel.over_slices`; NumPy releases the GIL)."""
     lows, highs = [], []
-    for start in range(0, motion.n_frames, chunk_frames):
-        part = motion.sliced(start, start + chunk_frames)
-        planes = [p for _, _, p in _fk_levels(part.rotations, local_translations(part), part.parents)]
-        lows.append([min(float(level[k].min()) for level in planes) for k in range(3)])
-        highs.append([max(float(level[k].max()) for level in planes) for k in range(3)])
+
+    def bounds_of(frames: slice) -> None:  # threads take turns over slices of frames (min/max: exact in any order)
+        for start in range(frames.start, frames.stop, chunk_frames):
+            part = motion.sliced(start, min(start + chunk_frames, frames.stop))
+            planes = [p for _, _, p in _fk_levels(part.rotations, local_translations(part), part.parents)]
+            lows.append([min(float(level[k].min()) for level in planes) for k in range(3)])
+            highs.append([max(float(level[k].max()) for level in planes) for k in range(3)])
+
+    over_slices(bounds_of, motion.n_frames, min_items=max(1, _THREAD_ITEMS // motion.n_joints))
     return np.min(lows, axis=0), np.max(highs, axis=0)
+
+
+#: Joint-frames a thread of :func:`position_bounds` takes at least (fewer: one thread does all).
+_THREAD_ITEMS = 40_000
 
 
 def local_translations(motion: Motion) -> np.ndarray:

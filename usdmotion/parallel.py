@@ -4,8 +4,8 @@ element-wise work (trigonometry, products) uses every core."""
 from __future__ import annotations
 
 import os
+import threading
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -29,5 +29,24 @@ def over_slices(work: Callable[[slice], None], n: int, min_items: int) -> None:
         work(slice(0, n))
         return
     bounds = np.linspace(0, n, count + 1).astype(int)
-    with ThreadPoolExecutor(max_workers=count) as pool:
-        list(pool.map(work, [slice(a, b) for a, b in zip(bounds[:-1], bounds[1:])]))
+    parts = [slice(a, b) for a, b in zip(bounds[:-1], bounds[1:])]
+    # plain threads, the calling one working too: concurrent.futures imports logging, 0.003 s
+    # of every BVH read (start-up, benchmarks/startup.py)
+    failed: list[BaseException] = []
+
+    def run(part: slice) -> None:
+        try:
+            work(part)
+        except Exception as exc:  # re-raised in the calling thread
+            failed.append(exc)
+
+    threads = [threading.Thread(target=run, args=(part,), daemon=True) for part in parts[1:]]
+    for thread in threads:
+        thread.start()
+    try:
+        work(parts[0])
+    finally:
+        for thread in threads:
+            thread.join()
+    if failed:
+        raise failed[0]

@@ -228,6 +228,19 @@ def detect_profile(names: Iterable[str]) -> str | None:
     return None
 
 
+def rig_family(names: Iterable[str]) -> str | None:
+    """The rig family to show for a skeleton: :func:`detect_profile`'s, else a profile used only
+    where named (``"auto_map": false``, e.g. CMU ASF bone names) whose signature names are all
+    there; ``None`` if neither. A label for people (library listings), never a joint map."""
+    names = list(names)
+    found = detect_profile(names)
+    if found is not None:
+        return found
+    table = names_by_key(names, _profile_key)
+    return next((name for name, profile in rig_profiles().items() if not profile.get("auto_map", True)
+                 and all(_has_any(table, s) for s in profile["signature"])), None)
+
+
 #: What a joint that is no body point of its rig's profile is (:func:`joint_kinds`).
 JOINT_KINDS = ("twist", "floor root", "hips root", "helper")
 

@@ -14,6 +14,7 @@ are imported at the top.
 
 from __future__ import annotations
 
+import gc
 import importlib
 import os
 import pkgutil
@@ -169,4 +170,8 @@ def run() -> None:
         sys.stdout.flush()
         sys.stderr.flush()
         os._exit(code)
+    # The process ends here: the interpreter's last garbage collection need not walk every
+    # object the imports made (pxr, NumPy, typer): 0.035 s of CPU time of every command
+    # (benchmarks/startup.py). Exit still runs atexit handlers and flushes the streams.
+    gc.freeze()
     sys.exit(code)

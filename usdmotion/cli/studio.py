@@ -22,6 +22,9 @@ def studio(
     port: Annotated[int, typer.Option(help="Port to listen on (0: any free port).")] = 8765,
     open_browser: Annotated[bool, typer.Option("--open/--no-open", help="Open the app in the web browser.")] = True,
     out: Annotated[Path, typer.Option(help="The only folder the studio may write to.")] = Path("out/studio"),
+    allow_host: Annotated[list[str] | None, typer.Option(
+        help="Another name the studio is opened by (besides localhost, 127.0.0.1 and --host), e.g. a "
+             "reverse proxy's; repeatable. Requests naming any other host are refused.", show_default=False)] = None,
     read: ReadOptions = ReadOptions(),
 ) -> None:
     """Browse, play and compare takes in the web browser (Ctrl+C stops the server)."""
@@ -30,4 +33,4 @@ def studio(
     def ready(url: str) -> None:
         typer.echo(f"usdmotion studio: {url} (writes only under {out}; Ctrl+C to stop)", err=True)
 
-    serve(paths or [Path(".")], host, port, out, dataclasses.asdict(read), open_browser, ready)
+    serve(paths or [Path(".")], host, port, out, dataclasses.asdict(read), open_browser, ready, allow_host or ())

@@ -216,25 +216,28 @@ def rotations_from_channels(values: np.ndarray, channels: tuple[tuple[str, ...],
         missing = gather < 0
         safe = np.maximum(gather, 0)
 
-        def convert(frames: slice, order=order, joints=joints, safe=safe, missing=missing) -> None:
-            halves = []
-            for axis in range(3):  # contiguous (F, G) planes of half angles in radians
-                plane = values[frames][:, safe[:, axis]] * half_per_degree
-                if missing[:, axis].any():
-                    plane[:, missing[:, axis]] = 0.0
-                halves.append(plane)
-            rotations[frames, joints] = half_angles_to_quat(*halves, order)
+        block = max(1, _BLOCK_ITEMS // len(joints))
 
-        for block in range(0, n_frames, _BLOCK_FRAMES):  # bounded temporaries, whatever the length
-            size = min(_BLOCK_FRAMES, n_frames - block)
-            over_slices(lambda part, block=block, convert=convert: convert(slice(block + part.start,
-                                                                                 block + part.stop)),
-                        size, min_items=max(1, 40_000 // len(joints)))
+        def convert(frames: slice, order=order, joints=joints, safe=safe, missing=missing, block=block) -> None:
+            for start in range(frames.start, frames.stop, block):  # small temporaries, reused block to block
+                part = slice(start, min(start + block, frames.stop))
+                halves = []
+                for axis in range(3):  # contiguous (F, G) planes of half angles in radians
+                    plane = values[part][:, safe[:, axis]] * half_per_degree
+                    if missing[:, axis].any():
+                        plane[:, missing[:, axis]] = 0.0
+                    halves.append(plane)
+                rotations[part, joints] = half_angles_to_quat(*halves, order)
+
+        over_slices(convert, n_frames, min_items=max(1, 40_000 // len(joints)))  # threads over slices of frames
     return rotations
 
 
-#: Frames converted at a time (the Euler → quaternion temporaries scale with it, not the take).
-_BLOCK_FRAMES = 8192
+#: Joint-frames converted at a time: the Euler → quaternion temporaries (about 20 arrays of
+#: this many floats) stay in the allocator's free memory and the CPU caches from block to
+#: block; 32,768 frames at a time cost twice the CPU time (a fresh page for every temporary:
+#: ``benchmarks/startup.py``), and a long take's read peak held 160 MB of them.
+_BLOCK_ITEMS = 16_000
 
 
 def _positions(values: np.ndarray, columns: dict[str, int], base: np.ndarray, add: bool) -> np.ndarray:

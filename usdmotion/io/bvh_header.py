@@ -340,9 +340,8 @@ def frame_rate(frame_time_text: str) -> float:
     if 0.5 * 10.0**-decimals > 2e-3 * frame_time:  # the text does not pin the rate to 0.2 %
         return 1.0 / frame_time
     raw = 1.0 / frame_time
-    for rate in sorted(_STANDARD_RATES, key=lambda r: abs(r - raw)):
-        if abs(rate - raw) > 0.01 * raw:
-            break
+    near = [rate for rate in _STANDARD_RATES if abs(rate - raw) <= 0.01 * raw]  # within 1 %, nearest first:
+    for rate in sorted(near, key=lambda r: abs(r - raw)):                    # sorting only those (start-up)
         if round(1.0 / rate, decimals) == round(frame_time, decimals):
             return rate
     return raw

@@ -33,6 +33,7 @@ from usdmotion.errors import OutputError, UsdMotionWarning, UsdReadError
 from usdmotion.io.atomic import atomic_output
 from usdmotion.io.usd_ar import ar_quick_look_problems, finish_stage
 from usdmotion.io.usd_read import read_usd_skeleton
+from usdmotion.io.usd_schema import schema_attribute
 from usdmotion.io.usd_skin import add_skinned_meshes
 from usdmotion.kinematics import compose_transforms, position_bounds, rest_pose
 from usdmotion.motion import Motion
@@ -125,14 +126,17 @@ def define_skeleton(stage, motion: Motion, root_path: str, frames: FrameSamples 
 
     ``frames``: the animation's samples when ``motion`` no longer holds them (only its
     skeleton is read then; see :func:`write_usd`); default: ``FrameSamples.of(motion)``.
-    Returns the ``UsdSkel.Skeleton``.
+    Returns the Skeleton's ``Usd.Prim`` (``UsdSkel.Skeleton(prim)`` gives the schema).
+    Authored through the generic prim API as the ``UsdSkel``/``UsdGeom`` schema classes
+    author it (:mod:`usdmotion.io.usd_schema`): the same layer, without their import.
     """
-    from pxr import Sdf, UsdGeom, UsdSkel, Vt
+    from pxr import Sdf, Vt
 
-    root = UsdSkel.Root.Define(stage, root_path)
-    stage.SetDefaultPrim(root.GetPrim())
-    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y if motion.up_axis == "Y" else UsdGeom.Tokens.z)
-    UsdGeom.SetStageMetersPerUnit(stage, motion.meters_per_unit)
+    types = Sdf.ValueTypeNames
+    root = stage.DefinePrim(root_path, "SkelRoot")
+    stage.SetDefaultPrim(root)
+    stage.SetMetadata("upAxis", "Y" if motion.up_axis == "Y" else "Z")  # UsdGeom.SetStageUpAxis
+    stage.SetMetadata("metersPerUnit", motion.meters_per_unit)          # UsdGeom.SetStageMetersPerUnit
     stage.SetTimeCodesPerSecond(motion.fps)
     stage.SetFramesPerSecond(motion.fps)
     frames = FrameSamples.of(motion) if frames is None else frames
@@ -140,12 +144,12 @@ def define_skeleton(stage, motion: Motion, root_path: str, frames: FrameSamples 
     stage.SetEndTimeCode(max(frames.n_frames - 1, 0))
 
     tokens = Vt.TokenArray(joint_path_tokens(motion.joint_names, motion.parents))
-    skel = UsdSkel.Skeleton.Define(stage, f"{root_path}/Skeleton")
-    skel.CreateJointsAttr(tokens)
-    skel.CreateJointNamesAttr(Vt.TokenArray(list(motion.joint_names)))
+    skel = stage.DefinePrim(f"{root_path}/Skeleton", "Skeleton")
+    schema_attribute(skel, "joints", types.TokenArray, tokens, uniform=True)
+    schema_attribute(skel, "jointNames", types.TokenArray, Vt.TokenArray(list(motion.joint_names)), uniform=True)
     rest_local, rest_world = _rest_transforms(motion)
-    skel.CreateRestTransformsAttr(_usd_matrices(rest_local))
-    skel.CreateBindTransformsAttr(_usd_matrices(rest_world))
+    schema_attribute(skel, "restTransforms", types.Matrix4dArray, _usd_matrices(rest_local), uniform=True)
+    schema_attribute(skel, "bindTransforms", types.Matrix4dArray, _usd_matrices(rest_world), uniform=True)
     custom = {
         "jointNames": Vt.StringArray(list(motion.joint_names)),
         "endSites": Vt.IntArray([int(j) for j in np.flatnonzero(motion.end_sites)]),
@@ -153,20 +157,22 @@ def define_skeleton(stage, motion: Motion, root_path: str, frames: FrameSamples 
     }
     if motion.channels is not None:
         custom["channels"] = Vt.StringArray([" ".join(c) for c in motion.channels])
-    skel.GetPrim().SetCustomDataByKey(CUSTOM_KEY, custom)
+    skel.SetCustomDataByKey(CUSTOM_KEY, custom)
 
-    anim = UsdSkel.Animation.Define(stage, f"{root_path}/Animation")
-    anim.CreateJointsAttr(tokens)
-    anim.CreateScalesAttr(Vt.Vec3hArray.FromNumpy(np.ones((motion.n_joints, 3), np.float16)))
-    translations_attr = anim.CreateTranslationsAttr()
-    rotations_attr = anim.CreateRotationsAttr()
-    binding = UsdSkel.BindingAPI.Apply(skel.GetPrim())
-    binding.CreateAnimationSourceRel().SetTargets([anim.GetPath()])
+    anim = stage.DefinePrim(f"{root_path}/Animation", "SkelAnimation")
+    schema_attribute(anim, "joints", types.TokenArray, tokens, uniform=True)
+    scales = Vt.Vec3hArray.FromNumpy(np.ones((motion.n_joints, 3), np.float16))
+    schema_attribute(anim, "scales", types.Half3Array, scales)
+    translations_attr = schema_attribute(anim, "translations", types.Float3Array)
+    rotations_attr = schema_attribute(anim, "rotations", types.QuatfArray)
+    skel.AddAppliedSchema("SkelBindingAPI")  # UsdSkel.BindingAPI.Apply
+    skel.CreateRelationship("skel:animationSource", False).SetTargets([anim.GetPath()])
 
     weights_path = None
     if frames.blend_shape_weights is not None:
-        anim.CreateBlendShapesAttr(Vt.TokenArray(list(motion.blend_shape_names)))
-        weights_path = anim.CreateBlendShapeWeightsAttr().GetPath()
+        schema_attribute(anim, "blendShapes", types.TokenArray, Vt.TokenArray(list(motion.blend_shape_names)),
+                         uniform=True)
+        weights_path = schema_attribute(anim, "blendShapeWeights", types.FloatArray).GetPath()
     layer = stage.GetRootLayer()
     t_path, r_path = translations_attr.GetPath(), rotations_attr.GetPath()
     offsets = motion.offsets.astype(np.float32)
@@ -252,10 +258,13 @@ def write_usd(motion: Motion | list[Motion], path: str | os.PathLike, name: str 
         try:
             stage = Usd.Stage.CreateNew(str(layer_path))
             skel = define_skeleton(stage, motion, root_path, frames)
-            if motion.meshes:
-                add_skinned_meshes(stage, skel, motion, path)
-            if decorate is not None:
-                decorate(stage, skel)
+            if motion.meshes or decorate is not None:
+                from pxr import UsdSkel  # meshes only (start-up, see define_skeleton)
+
+                if motion.meshes:
+                    add_skinned_meshes(stage, UsdSkel.Skeleton(skel), motion, path)
+                if decorate is not None:
+                    decorate(stage, UsdSkel.Skeleton(skel))
 
             finish_stage(stage, skel, motion, bounds)
             stage.GetRootLayer().Save()

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from usdmotion.io.usd_schema import schema_attribute
 from usdmotion.kinematics import position_bounds, rest_pose
 
 VALIDATORS = (
@@ -46,17 +47,30 @@ DEFAULT_COLOR = (0.62, 0.62, 0.62)
 
 def finish_stage(stage, skeleton, motion, bounds: tuple[np.ndarray, np.ndarray] | None = None) -> None:
     """Author ``kind``, ``extent``/``extentsHint`` and materials (see the module docstring).
-    ``bounds``: ``position_bounds`` of the animation when ``motion`` holds only its skeleton."""
+
+    ``skeleton``: the Skeleton (``Usd.Prim`` or ``UsdSkel.Skeleton``) under the SkelRoot.
+    ``bounds``: ``position_bounds`` of the animation when ``motion`` holds only its skeleton.
+    A skeleton-only stage is finished without importing ``pxr.UsdGeom``/``UsdSkel`` (start-up)."""
     from pxr import Kind, Usd
 
     root = skeleton.GetPrim().GetParent()
     Usd.ModelAPI(root).SetKind(Kind.Tokens.component)
-    _extent(stage, root, motion, bounds)
-    _materials(stage, root)
+    meshes = _meshes(root)
+    _extent(stage, root, motion, meshes, bounds)
+    _materials(stage, root, meshes)
 
 
-def _extent(stage, root, motion, bounds) -> None:
-    from pxr import Gf, UsdGeom, UsdSkel, Vt
+def _meshes(root) -> list:
+    """The ``Usd.Prim`` children of ``root`` that are ``UsdGeom.Mesh`` prims (``IsA`` through the
+    type's name: no ``pxr.UsdGeom`` import)."""
+    from pxr import Tf
+
+    mesh = Tf.Type.FindByName("UsdGeomMesh")
+    return [prim for prim in root.GetChildren() if prim.IsA(mesh)]
+
+
+def _extent(stage, root, motion, meshes: list, bounds) -> None:
+    from pxr import Gf, Sdf, Vt
 
     if bounds is not None:
         lo, hi = bounds
@@ -66,25 +80,23 @@ def _extent(stage, root, motion, bounds) -> None:
         rest = rest_pose(motion)[1]
         lo, hi = rest.min(axis=0), rest.max(axis=0)
     reach = 0.0
-    for prim in root.GetChildren():
-        if prim.IsA(UsdGeom.Mesh):
-            points = np.array(UsdGeom.Mesh(prim).GetPointsAttr().Get(), np.float64).reshape(-1, 3)
-            bind = np.array(UsdSkel.Skeleton(stage.GetPrimAtPath(
-                UsdSkel.BindingAPI(prim).GetSkeletonRel().GetTargets()[0])).GetBindTransformsAttr().Get())
-            joints = np.array(UsdSkel.BindingAPI(prim).GetJointIndicesPrimvar().Get()).reshape(len(points), -1)[:, 0]
-            reach = max(reach, float(np.linalg.norm(points - bind[joints, 3, :3], axis=1).max(initial=0.0)))
+    if meshes:
+        from pxr import UsdGeom, UsdSkel  # stages with meshes only
+    for prim in meshes:
+        points = np.array(UsdGeom.Mesh(prim).GetPointsAttr().Get(), np.float64).reshape(-1, 3)
+        bind = np.array(UsdSkel.Skeleton(stage.GetPrimAtPath(
+            UsdSkel.BindingAPI(prim).GetSkeletonRel().GetTargets()[0])).GetBindTransformsAttr().Get())
+        joints = np.array(UsdSkel.BindingAPI(prim).GetJointIndicesPrimvar().Get()).reshape(len(points), -1)[:, 0]
+        reach = max(reach, float(np.linalg.norm(points - bind[joints, 3, :3], axis=1).max(initial=0.0)))
     box = Vt.Vec3fArray([Gf.Vec3f(*map(float, lo - reach)), Gf.Vec3f(*map(float, hi + reach))])
-    UsdGeom.Boundable(root).CreateExtentAttr(box)
-    UsdGeom.ModelAPI(root).SetExtentsHint(box)
+    schema_attribute(root, "extent", Sdf.ValueTypeNames.Float3Array, box)       # UsdGeom.Boundable.CreateExtentAttr
+    schema_attribute(root, "extentsHint", Sdf.ValueTypeNames.Float3Array, box)  # UsdGeom.ModelAPI.SetExtentsHint
 
 
-def _materials(stage, root) -> None:
-    from pxr import UsdGeom
-
-    meshes = [prim for prim in root.GetChildren() if prim.IsA(UsdGeom.Mesh)]
+def _materials(stage, root, meshes: list) -> None:
     if not meshes:
         return
-    from pxr import Gf, Sdf, UsdShade  # only here: pxr.UsdShade imports Sdr (skeleton-only stages need neither)
+    from pxr import Gf, Sdf, UsdGeom, UsdShade  # only here: UsdShade imports Sdr (skeleton-only stages need neither)
 
     for prim in meshes:
         if UsdShade.MaterialBindingAPI(prim).GetDirectBindingRel().GetTargets():

@@ -8,6 +8,7 @@ thread pool (sync endpoints); a take that fails answers 422 with its one-line er
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -27,6 +28,9 @@ NODE_MODULES = WEB / "node_modules"
 MAX_BODY_BYTES = 64 * 1024
 #: Most ids in one metadata request, joints in one series request.
 MAX_IDS = 200
+#: Host names always accepted (besides IP addresses): a page of another site that a DNS rebinding
+#: points at this machine sends its own name in the ``Host`` header, and is refused.
+LOCAL_HOSTS = ("localhost",)
 
 
 def missing_web_packages() -> list[str]:
@@ -127,9 +131,12 @@ def _compare_params(request: Request, n_frames: int) -> tuple[str, float, int]:
     return mode, offset, min(max(frame, 0), n_frames - 1)
 
 
-def create_app(roots: list[Path], options: dict | None = None, out: Path | None = None) -> Starlette:
+def create_app(roots: list[Path], options: dict | None = None, out: Path | None = None,
+               hosts: Sequence[str] = ()) -> Starlette:
     """The studio over ``roots``, reading with ``options`` (:func:`usdmotion.io.read_motion`
-    keywords); ``out`` is the only folder it may write to (created on first use)."""
+    keywords); ``out`` is the only folder it may write to (created on first use). It answers only
+    requests whose ``Host`` header is an IP address, ``localhost`` or one of ``hosts`` (names, without
+    port); any other gets 400 (see :class:`_Guard`)."""
     from usdmotion.studio import edit_panel, jobs, retarget_panel, segment_panel, video_panel
 
     options = read_options(**(options or {}))
@@ -149,7 +156,7 @@ def create_app(roots: list[Path], options: dict | None = None, out: Path | None 
               Mount("/vendor/three", _Static(directory=NODE_MODULES / "three", check_dir=False), name="three"),
               Mount("/vendor/uplot", _Static(directory=NODE_MODULES / "uplot", check_dir=False), name="uplot")]
     app = Starlette(routes=routes, exception_handlers={StudioError: _error_response}, lifespan=_stops_jobs(api.jobs))
-    app.add_middleware(_Guard)
+    app.add_middleware(_Guard, hosts=[*LOCAL_HOSTS, *hosts])
     app.state.api = api
     return app
 
@@ -211,19 +218,26 @@ async def _error_response(request: Request, exc: StudioError) -> Response:
 
 
 class _Guard:
-    """Bounded requests (no body over ``MAX_BODY_BYTES``); only GET/HEAD, except POST (JSON)
+    """Only requests for this studio by name: a ``Host`` header that is an IP address or one of
+    ``hosts`` (else 400: a DNS rebinding cannot read the library through another site's name);
+    bounded requests (no body over ``MAX_BODY_BYTES``); only GET/HEAD, except POST (JSON)
     and DELETE on ``/api/`` from the studio's own page (a cross-site ``Origin`` is refused, so
     another web site cannot start jobs); adds a ``Server-Timing`` header with the time the
     server spent on the request."""
 
-    def __init__(self, app) -> None:
+    def __init__(self, app, hosts: Sequence[str]) -> None:
         self.app = app
+        self.hosts = {h.lower() for h in hosts}
 
     async def __call__(self, scope, receive, send) -> None:
         if scope["type"] != "http":
             return await self.app(scope, receive, send)
         headers = dict(scope.get("headers") or [])
         length = headers.get(b"content-length", b"0")
+        host = _host_name(headers.get(b"host", b""))
+        if host not in self.hosts and not _is_ip_address(host):
+            return await JSONResponse({"error": f"this studio does not answer for the host {host!r} (see --allow-host)"},
+                                      status_code=400)(scope, receive, send)
         if scope["method"] not in ("GET", "HEAD") and not _same_site_api_call(scope, headers):
             return await JSONResponse({"error": "read-only"}, status_code=405)(scope, receive, send)
         if not length.isdigit() or int(length) > MAX_BODY_BYTES:
@@ -239,6 +253,24 @@ class _Guard:
             await send(message)
 
         await self.app(scope, receive, timed_send)
+
+
+def _host_name(header: bytes) -> str:
+    """The name in a ``Host`` header, lower case, without port or IPv6 brackets."""
+    text = header.decode("latin-1").strip().lower()
+    if text.startswith("["):
+        return text[1:].split("]", 1)[0]
+    return text.rsplit(":", 1)[0] if text.count(":") == 1 else text
+
+
+def _is_ip_address(host: str) -> bool:
+    import ipaddress
+
+    try:
+        ipaddress.ip_address(host)
+    except ValueError:
+        return False
+    return True
 
 
 def _same_site_api_call(scope, headers: dict) -> bool:

@@ -118,7 +118,7 @@ class Library:
 def describe_take(entry: Entry, read) -> dict:
     """Library metadata of one take read by ``read(entry)`` (see :meth:`Library.metadata`)."""
     from usdmotion.kinematics import skeleton_height
-    from usdmotion.skeleton_names import detect_profile
+    from usdmotion.skeleton_names import rig_family
 
     try:
         motion = read(entry)
@@ -128,7 +128,7 @@ def describe_take(entry: Entry, read) -> dict:
             "frames": motion.n_frames,
             "fps": motion.fps,
             "duration_s": motion.duration,
-            "rig": detect_profile(names) or "unknown",
+            "rig": rig_family(names) or "unknown",
             "height_m": skeleton_height(motion) * motion.meters_per_unit,
         }
     except Exception as exc:  # noqa: BLE001 - every failure becomes the take's one-line error

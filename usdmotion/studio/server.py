@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import socket
+from collections.abc import Sequence
 from pathlib import Path
 
 from usdmotion.errors import InputError, UsdMotionError
@@ -20,10 +21,19 @@ def check_roots(paths: list[Path]) -> list[Path]:
     return paths
 
 
+def host_names(host: str, extra: Sequence[str] = ()) -> list[str]:
+    """The names (``Host`` header, besides IP addresses and ``localhost``) the studio listening on
+    ``host`` answers for: that name, or for every address (``0.0.0.0``, ``::``) this machine's name;
+    then ``extra`` (``--allow-host``)."""
+    names = [socket.gethostname() if host in ("0.0.0.0", "::", "") else host, *extra]
+    return list(dict.fromkeys(n.lower().strip("[]") for n in names if n))
+
+
 def serve(paths: list[Path], host: str, port: int, out: Path, options: dict, open_browser: bool,
-          ready=None) -> None:
+          ready=None, allow_hosts: Sequence[str] = ()) -> None:
     """Serve the studio until interrupted; ``options`` are :func:`usdmotion.io.read_motion`
-    keywords for every take; ``ready(url)`` is called once it listens."""
+    keywords for every take; ``ready(url)`` is called once it listens; requests naming another host
+    than this machine, ``host`` or ``allow_hosts`` are refused (:func:`host_names`)."""
     import uvicorn
 
     from usdmotion.studio.app import create_app, missing_web_packages
@@ -32,7 +42,7 @@ def serve(paths: list[Path], host: str, port: int, out: Path, options: dict, ope
     if missing:
         raise UsdMotionError(f"the studio's web packages are missing ({', '.join(missing)}): run scripts/setup.sh "
                              "(npm ci in usdmotion/studio/web)")
-    app = create_app(check_roots(paths), options, out)
+    app = create_app(check_roots(paths), options, out, hosts=host_names(host, allow_hosts))
     sock = socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET)
     try:
         sock.bind((host, port))

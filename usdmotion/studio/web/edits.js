@@ -153,7 +153,7 @@ export function mountEdits(studio) {
     const q = studio.plotQuery();
     const [mine, original] = await Promise.all([getJSON('/api/edit/series', {key: answer.key, ...q}),
                                                 getJSON('/api/series', {take: take.id, ...q}).catch(() => null)]);
-    plots.show(mine, original, answer.map, 'original');
+    await plots.show(mine, original, answer.map, 'original');
   }
 
   async function showOriginal() {

@@ -19,8 +19,13 @@ export class Figure {
     const transparent = opacity < 1;
     const lineGeometry = new THREE.BufferGeometry();
     lineGeometry.setAttribute('position', new THREE.BufferAttribute(new Float32Array(this.bones.length * 6), 3));
-    this.stick = new THREE.LineSegments(lineGeometry,
-      new THREE.LineBasicMaterial({color, transparent, opacity, depthTest: !transparent}));
+    // the colour per vertex, as the floor grid has it: one shader program for both (a program is a
+    // costly compile in software WebGL, before the first frame)
+    const rgb = new THREE.Color(color).toArray();
+    lineGeometry.setAttribute('color', new THREE.BufferAttribute(
+      Float32Array.from({length: this.bones.length * 6}, (_, i) => rgb[i % 3]), 3));
+    this.stick = new THREE.LineSegments(lineGeometry, new THREE.LineBasicMaterial({
+      vertexColors: true, toneMapped: false, transparent, opacity, depthTest: !transparent}));
     const sphere = new THREE.SphereGeometry(0.025, 10, 8);
     this.joints = new THREE.InstancedMesh(sphere,
       new THREE.MeshStandardMaterial({color, transparent, opacity}), this.J);

@@ -1,13 +1,11 @@
 // Studio page: wires the library, the player, the plots and compare, and keeps every view
 // state in the URL (take, frame, range, camera, speed, compare, plots) so a link reopens it.
+// Only what draws a take's first frame is imported here; the tool panels (segmentation, edits,
+// retarget, video) are imported once that frame is drawn (see loadPanels).
 import {getJSON, loadTake, takeGlb} from './api.js';
 import {LibraryView} from './library.js';
 import {Player} from './player.js';
 import {Plots} from './plots.js';
-import {mountEdits} from './edits.js';
-import {mountRetarget} from './retarget.js';
-import {mountVideo} from './video.js';
-import {SegmentEditor} from './segment.js';
 
 const $ = id => document.getElementById(id);
 const params = new URLSearchParams(location.search);
@@ -60,23 +58,37 @@ const player = new Player($('canvas'), frame => {
   $('readout').textContent = `frame ${frame} / ${player.frames - 1} · ${t.toFixed(3)} s`;
   $('scrub').value = frame;
   plots.setTime(t);
-  segments.setFrame(frame);
+  if (segments) segments.setFrame(frame);
   if (!player.playing) writeUrl();
 });
 player.onStop = () => { $('play').textContent = '▶'; writeUrl(); };
 player.onOrbit = () => { player.cameraMode = 'orbit'; $('camera').value = 'orbit'; };
 player.onCamera = () => { clearTimeout(player.urlTimer); player.urlTimer = setTimeout(writeUrl, 300); };
 const plots = new Plots($('plots'), t => player.setFrame(Math.round(t * player.fps)));
-const segments = new SegmentEditor($('segment-panel'), {player, seek: f => player.setFrame(f),
-  setRange: r => { player.range = state.range = r; showRange(); applyTrace(); writeUrl(); },
-  playToggle: () => $('play').click(), refreshLibrary: () => tools.refreshLibrary()});
 const library = new LibraryView($('takes'), $('filter'), $('library-status'), id => openTake(id, true));
 // the tool panels (edits, retarget, video) see the page through these few hooks
 const tools = {player, plots, take: () => take, state, reopen: () => openTake(state.take, false),
   plotQuery: () => ({joints: state.joints.join(','), q: state.q.join(',')}),
   refreshLibrary: async () => { await library.load(); await library.fill(); fillTakeLists(); }};
-const edits = mountEdits(tools), retargeting = mountRetarget(tools);
-mountVideo(tools);
+let segments = null, edits = null, retargeting = null, panelsLoaded = null;
+const PANELS = '.tool-panel, #segment-panel';
+
+/** Import and mount the tool panels (once; resolves when they are there). A fresh page on a take's
+ *  URL draws the take first: these modules, their requests and their uPlot are not needed for that. */
+function loadPanels() {
+  return panelsLoaded || (panelsLoaded = Promise.all(['segment', 'edits', 'retarget', 'video']
+    .map(name => import(`./${name}.js`))).then(([{SegmentEditor}, {mountEdits}, {mountRetarget}, {mountVideo}]) => {
+    segments = new SegmentEditor($('segment-panel'), {player, seek: f => player.setFrame(f),
+      setRange: r => { player.range = state.range = r; showRange(); applyTrace(); writeUrl(); },
+      playToggle: () => $('play').click(), refreshLibrary: () => tools.refreshLibrary()});
+    edits = mountEdits(tools);
+    retargeting = mountRetarget(tools);
+    mountVideo(tools);
+    document.querySelectorAll(PANELS).forEach(panel => blurAfterClick(panel));
+    if (take) { segments.setTake(take); segments.setFrame(player.frame); edits.opened(take); retargeting.opened(take); }
+    fillTakeLists();
+  }));
+}
 
 async function openTake(id, fresh) {
   player.openedAt = performance.now();
@@ -96,7 +108,7 @@ async function openTake(id, fresh) {
   } catch (e) {
     $('view-message').textContent = `${id}: ${e.message}`;
     $('view-message').className = 'error-text';
-    segments.setTake(null);
+    if (segments) segments.setTake(null);
     takeShown();
     return;
   }
@@ -112,10 +124,9 @@ async function openTake(id, fresh) {
   player.setCamera(state.cam, state.orbit.length === 6 ? state.orbit : null);
   $('camera').value = state.cam;
   fillJoints();
-  segments.setTake(take);
+  if (segments) segments.setTake(take);
   player.setFrame(state.frame);
-  edits.opened(take);
-  retargeting.opened(take);
+  if (edits) { edits.opened(take); retargeting.opened(take); }
   takeShown();
   $('view-message').textContent = 'body: loading…';
   // the body first, then the plots (their analysis would slow the body's first build on the server)
@@ -150,7 +161,7 @@ async function loadSeries() {
       ghostTake ? ask(ghostTake.id).catch(() => null) : null]);
     if (mine !== asked.series) return;
     [series, ghostSeries] = [mainSeries, otherSeries];
-    plots.show(series, ghostSeries, ghostMap);
+    await plots.show(series, ghostSeries, ghostMap);
     plots.setTime(player.frame / player.fps);
   } catch (e) {
     $('plots').textContent = `plots: ${e.message}`;
@@ -277,9 +288,7 @@ function wire() {
     link.hidden = false;
     setTimeout(() => player.clearStrobe(), 4000);
   };
-  // after a mouse click, controls give the keyboard back to the player (space = play, not 'press again')
-  document.querySelectorAll('button, input[type=checkbox], input[type=range]').forEach(el =>
-    el.addEventListener(el.type === 'range' ? 'change' : 'click', () => el.blur()));
+  blurAfterClick(document, PANELS);  // the panels' controls: when they are mounted
   window.addEventListener('keydown', e => {
     if (e.target.tagName === 'INPUT' && e.target.type !== 'range' && e.target.type !== 'checkbox') return;
     if (e.target.tagName === 'SELECT') return;
@@ -291,29 +300,44 @@ function wire() {
   $('align-mode').value = state.align; $('offset').value = state.offset; $('align-space').value = state.space;
 }
 
+/** After a mouse click, the controls under ``root`` (but not under ``except``) give the keyboard back
+ *  to the player (space = play, not 'press again'). */
+function blurAfterClick(root, except = null) {
+  root.querySelectorAll('button, input[type=checkbox], input[type=range]').forEach(el => {
+    if (!except || !el.closest(except)) el.addEventListener(el.type === 'range' ? 'change' : 'click', () => el.blur());
+  });
+}
+
 function fillTakeLists() {
   const options = library.readable().map(t => new Option(t.name, t.id));
   $('compare').replaceChildren(new Option('—', ''), ...options.map(o => o.cloneNode(true)));
   $('compare').value = state.compare;
-  edits.libraryFilled(options);
-  retargeting.libraryFilled(options);
+  if (edits) { edits.libraryFilled(options); retargeting.libraryFilled(options); }
 }
 
 async function start() {
   wire();
   $('segment-panel').open = state.seg;
   $('segment-panel').addEventListener('toggle', () => writeUrl());
-  player.warmUp();  // while the take's arrays are on their way
+  // the shaders of a take's first frame, compiled while the user picks one; a linked take's arrays are
+  // there by the time three.js is (the server has read the file meanwhile): its first frame compiles
+  // them, a warm-up would only draw one frame more (the compare ghost's are compiled once it is drawn)
+  if (!state.take) player.warmUp();
   const opening = state.take ? openTake(state.take, false) : null;
   await library.load();  // the list of takes, at once
-  if (opening) await Promise.race([shown, opening]);  // a linked take is drawn before the library is read
+  if (opening) {  // a linked take is drawn before the library is read and the panels are loaded
+    await Promise.race([shown, opening]);
+    await new Promise(resolve => requestAnimationFrame(() => setTimeout(resolve)));  // after the draw
+  }
+  const panels = loadPanels();
   await library.fill();
   fillTakeLists();
-  await opening;
+  await Promise.all([opening, panels]);
+  if (opening) player.warmUp([0.7]);
   document.body.dataset.loaded = '1';
 }
 
 // for tests and benchmarks: read-only views of the page's state
-window.studio = {player, plots, state, segments, projectJoints: () => player.figure ?
+window.studio = {player, plots, state, get segments() { return segments; }, projectJoints: () => player.figure ?
   player.figure.take.joint_names.map((_, j) => player.project(player.figure.joint(player.frame, j))) : []};
 start();

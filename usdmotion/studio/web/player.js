@@ -9,7 +9,10 @@ export class Player {
     this.canvas = canvas;
     this.onFrame = onFrame;
     this.renderer = new THREE.WebGLRenderer({canvas, antialias: true, preserveDrawingBuffer: true});
-    this.renderer.setPixelRatio(1);
+    // no error checks after each shader compile and link: each is a round trip that waits for the GPU
+    // process (busy compositing the page in software WebGL), and three's own shaders do not fail
+    this.renderer.debug.checkShaderErrors = false;
+    // three.js's pixel ratio is 1 already: no setPixelRatio(1), which would remake the drawing buffer
     this.scene = new THREE.Scene();
     this.scene.background = new THREE.Color(0xdfe3e6);
     this.scene.add(new THREE.HemisphereLight(0xffffff, 0x667788, 2.2));
@@ -47,11 +50,11 @@ export class Player {
   }
 
   /** Compile the figure's shaders while a take is being fetched (software WebGL takes a
-   *  while): a two-joint figure, drawn once and dropped. */
-  warmUp() {
+   *  while): a two-joint figure of each opacity (1: a take, 0.7: a compare ghost), drawn once and dropped. */
+  warmUp(opacities = [1, 0.7]) {
     const take = {joint_names: ['a', 'b'], parents: [-1, 0], frames: 1, fps: 1,
                   positions: new Float32Array([0, 0, 0, 0, 1, 0])};
-    for (const opacity of [1, 0.7]) {
+    for (const opacity of opacities) {
       const figure = new Figure(take, {opacity});
       figure.setFrame(0);
       this.scene.add(figure.group);
@@ -59,6 +62,7 @@ export class Player {
       this.scene.remove(figure.group);
       figure.dispose();
     }
+    this.dirty = true;  // the next frame is drawn without it
   }
 
   resize() {

@@ -1,6 +1,8 @@
 // Plots on the take's timeline (uPlot): one chart per unit, a cursor that follows playback,
 // click or drag to seek. A compare take's series are drawn dashed on the same timeline.
-import uPlot from 'uplot';
+// uPlot is imported with the first chart: a take's first frame does not wait for it.
+let uPlotLoaded = null;
+const loadUPlot = () => uPlotLoaded || (uPlotLoaded = import('uplot').then(module => module.default));
 
 const COLORS = ['#1f5fbf', '#2a9d3a', '#8e44ad', '#c0392b', '#16a085', '#7f8c8d'];
 
@@ -13,7 +15,8 @@ export class Plots {
   }
 
   /** data: the server's series answer; ghost: the compare take's, ghostMap its frame per frame. */
-  show(data, ghost = null, ghostMap = null, ghostName = 'compare') {
+  async show(data, ghost = null, ghostMap = null, ghostName = 'compare') {
+    const uPlot = await loadUPlot();  // calls that awaited it resume in their order: the latest call shows
     this.charts.forEach(c => c.plot.destroy());
     this.charts = [];
     this.container.replaceChildren();

@@ -1,0 +1,123 @@
+"""Where a fresh page on a take's URL spends its time before the first frame (issue 13's `url` row of
+``benchmarks/studio.py``, taken apart).
+
+    PYTHONPATH=$PWD .venv/bin/python benchmarks/studio_url.py [--runs 3] [--frames 5000]
+
+Each run starts a fresh headless Chromium (software WebGL, the tests' flags) on a copy of the
+5,000-frame take the server has not read, opens ``/?take=...`` and records, in ms from navigation:
+the HTML parsed (``domInteractive``), main.js fetched, the server had the take's positions (their
+response started: it is sent once computed; the server reads the file first), the first
+render and its pixels, the body's pixels; and the calls into WebGL that blocked the page for more
+than 3 ms before the first pixels (each is a round trip to the GPU process: context creation, the
+first query after it, shader link status, the benchmark's pixel read-back), by kind. Medians over
+the runs; prints a table and writes ``benchmarks/results/studio_url.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import json
+import os
+import statistics
+import sys
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "tests"))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+#: Times every WebGL call and getContext; keeps those over 3 ms (they waited for the GPU process).
+GL_LOG = """(() => {
+  window.glWaits = [];
+  const wrap = (proto, name) => {
+    const f = proto[name];
+    proto[name] = function (...args) {
+      const t = performance.now(), result = f.apply(this, args), dt = performance.now() - t;
+      if (dt > 3) window.glWaits.push([name, t, dt]);
+      return result;
+    };
+  };
+  for (const name of Object.getOwnPropertyNames(WebGL2RenderingContext.prototype)) {
+    if (typeof Object.getOwnPropertyDescriptor(WebGL2RenderingContext.prototype, name).value === 'function') {
+      wrap(WebGL2RenderingContext.prototype, name);
+    }
+  }
+  wrap(HTMLCanvasElement.prototype, 'getContext');
+})()"""
+
+READ = """() => {
+  const p = window.studio.player, nav = performance.getEntriesByType('navigation')[0];
+  const entry = part => performance.getEntriesByType('resource').find(e => e.name.includes(part)) || {};
+  const waits = window.glWaits.filter(([, t]) => t < p.firstPixelsAt);
+  return {dom_interactive: nav.domInteractive, main_js: entry('/app/main.js').responseEnd,
+          positions: entry('/api/positions').responseStart,
+          first_render: p.firstDrawnAt, first_pixels: p.firstPixelsAt, body_pixels: p.bodyPixelsAt,
+          gl_waits: waits.map(([name, , dt]) => [name, dt])};
+}"""
+
+COLUMNS = ("dom_interactive", "main_js", "positions", "first_render", "first_pixels", "body_pixels", "gl_wait_total")
+
+
+def one_run(p, base: str, take_id: str) -> dict:
+    from test_studio_browser import ARGS, CHROMIUM
+
+    browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
+    try:
+        page = browser.new_page(viewport={"width": 1800, "height": 1200})
+        page.add_init_script("window.studioTimings = true")
+        page.add_init_script(GL_LOG)
+        page.goto(f"{base}/?take={take_id}")
+        page.wait_for_function("window.studio && window.studio.player.bodyPixelsAt !== null", timeout=300_000)
+        row = page.evaluate(READ)
+    finally:
+        browser.close()
+    by_kind = collections.Counter()
+    for name, dt in row.pop("gl_waits"):
+        by_kind[name] += dt
+    row["gl_wait_total"] = sum(by_kind.values())
+    row["gl_waits_ms"] = dict(by_kind.most_common())
+    row["load_average_1min"] = os.getloadavg()[0]
+    return row
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--runs", type=int, default=3)
+    ap.add_argument("--frames", type=int, default=5000)
+    args = ap.parse_args()
+    from playwright.sync_api import sync_playwright
+
+    from studio import make_take
+    from studio_support import running_studio
+
+    tmp = Path(tempfile.mkdtemp(prefix="studio_url_"))
+    take = make_take(tmp, args.frames)
+    copies = []
+    for i in range(args.runs):  # each run opens a file the server has not read yet
+        copy = take.with_name(f"unread{i}_{take.name}")
+        copy.write_bytes(take.read_bytes())
+        copies.append(copy)
+    with running_studio([take.parent], units="asf", out=tmp / "out") as base, sync_playwright() as p:
+        rows = [one_run(p, base, f"0/{copy.name}") for copy in copies]
+    print(f"load average (1 min): {os.getloadavg()[0]:.1f}")
+    print(f"fresh page on the URL of an unread {args.frames}-frame take; ms from navigation, median of {args.runs}")
+    print("".join(f"{c:>16}" for c in COLUMNS))
+    medians = {c: statistics.median(r[c] for r in rows) for c in COLUMNS}
+    print("".join(f"{medians[c]:>16.0f}" for c in COLUMNS))
+    kinds = collections.Counter()
+    for r in rows:
+        kinds.update(r["gl_waits_ms"])
+    print("WebGL calls that waited for the GPU process before the first pixels (ms, mean per run): " +
+          ", ".join(f"{name} {ms / len(rows):.0f}" for name, ms in kinds.most_common()))
+    out = ROOT / "benchmarks" / "results" / "studio_url.json"
+    out.parent.mkdir(exist_ok=True)
+    out.write_text(json.dumps({"frames": args.frames, "medians_ms": medians, "runs": rows,
+                               "load_average_1min": os.getloadavg()[0]}, indent=2))
+    print(f"wrote {out.relative_to(ROOT)}")
+
+
+if __name__ == "__main__":
+    main()
