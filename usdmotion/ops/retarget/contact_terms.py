@@ -18,7 +18,9 @@ to arrays in the target's frame and units (the solver's, before centring):
 * during every contact interval the target contact joint is pulled to one fixed point:
   horizontally the mean of the source joint's position over the interval (scaled about
   the same ground point when the root is), vertically its planted level
-  ``floor + k · clearance`` (the target's ankle sits ``k`` times as high as the source's);
+  ``floor + k · clearance`` (the target's ankle sits ``k`` times as high as the source's;
+  never below :data:`ABOVE_FLOOR_M`); a toe's fixed point is then moved to a foot's
+  length from its ankle's (:func:`foot_length_apart`);
 * every target joint is kept above the floor (a one-sided term);
 * between contacts the contact joint follows its (root-scaled) source position plus an
   offset blended linearly from the end of one contact's fixed point to the start of the
@@ -30,7 +32,8 @@ to arrays in the target's frame and units (the solver's, before centring):
   showed as steps of several degrees per frame in the legs and the upper body.
 
 Weights (per unit² of target length; the mapped joints weigh 1): :data:`CONTACT_WEIGHT`
-for a planted joint, :data:`FLOOR_WEIGHT` per unit² below the floor.
+for a planted joint, :data:`FLOOR_WEIGHT` per unit² below the floor; in the contact solve
+the mapped joints above the legs weigh :data:`BODY_SHARE` (:func:`body_share`).
 """
 
 from __future__ import annotations
