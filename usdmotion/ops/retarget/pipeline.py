@@ -326,10 +326,9 @@ def _problem(setup: Setup, terms=None, smooth: float = 0.0, prior: float = 0.0):
     extra = {}
     if smooth > 0:
         extra["smooth"] = smooth * smooth_scale(setup)
-    if prior > 0:
-        extra["prior"] = prior * smooth_scale(setup)
-        if terms is not None:  # the contact solve: everything but the leg chains keeps the plain solve
-            extra["prior"] = extra["prior"] * contact_prior_share(setup, terms.joints)
+    if prior > 0:  # in the contact solve everything but the leg chains keeps the plain solve
+        share = 1.0 if terms is None else contact_prior_share(setup, terms.joints)
+        extra["prior"] = prior * smooth_scale(setup) * share
     if terms is not None:
         extra.update(contact_joints=terms.joints, floor_joints=moved_joints(setup), up=terms.up,
                      floor_weight=FLOOR_WEIGHT)
@@ -355,9 +354,8 @@ def retarget(source: Motion, target: Motion | None = None, *, remove=(), add=(),
             automatic otherwise).
         method: ``"lm"`` (default) or ``"adam"`` (the paper's reference).
         iterations: LM's maximum (default 100; it stops once every frame has converged) or
-            Adam's iteration count (default 500). With contacts: the maximum of the contact
-            phase (default :data:`~usdmotion.ops.retarget.problem.CONTACT_ITERATIONS`, after
-            :data:`~usdmotion.ops.retarget.problem.CONTACT_WARM_ITERATIONS` plain ones).
+            Adam's iteration count (default 500). With contacts: the contact phase's maximum
+            (default ``problem.CONTACT_ITERATIONS``, after ``CONTACT_WARM_ITERATIONS`` plain ones).
         lengths: ``"source"`` (step 1: mean source bone lengths) or ``"target"`` (keep).
         directions: ``"auto"``/``"mean"``/``"rest"`` for derived rigs (see module doc).
         scale: ``"units"``, ``"auto"`` or a number (targets from files only).
