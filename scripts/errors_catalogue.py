@@ -23,6 +23,9 @@ OUT = REPO / "docs" / "errors.md"
 
 #: (pattern on the message, what to do); first match wins.
 ADVICE = [
+    (r"not valid UsdSkel|fails pxr.UsdValidation",
+     "A bug in usdmotion's USD writer, caught before anything was written: report it with the input file and "
+     "command (USDMOTION_DEBUG=1 shows a traceback)."),
     (r"levels deep|joints; at most|more than … joints",
      "The skeleton exceeds the supported size (1,000 levels, 10,000 joints); check that the file really is a rig."),
     (r"float32", "A translation is too large for USD's float32 samples; fix the input (values must stay within ±1e15)."),

@@ -11,7 +11,7 @@ import pytest
 
 WALK = Path(__file__).resolve().parents[1] / "usdmotion" / "data" / "cmu_12_01_walk.bvh"
 HEAVY = ("jax", "pandas", "pyrender", "scipy", "scipy.signal", "numpy", "pxr", "pydantic", "rich", "pyarrow",
-         "jsonschema", "numpy.ma", "pxr.UsdGeom", "pxr.UsdSkel")
+         "jsonschema", "numpy.ma", "pxr.Usd", "pxr.UsdGeom", "pxr.UsdSkel", "pxr.UsdValidation")
 SCRIPT = ("import atexit, json, sys\n"
           f"atexit.register(lambda: print('MODULES ' + json.dumps([m for m in {HEAVY!r} if m in sys.modules]"
           " + sorted(m for m in sys.modules if m.startswith('usdmotion.cli.') and '._' not in m"
@@ -44,8 +44,9 @@ def test_info_and_convert_import_no_heavy_optional_dependency(tmp_path, args):
         assert "rich" not in found  # the progress bar imports rich only when it is drawn
     if not writes_bvh:  # np.median and np.unique import numpy.ma (0.03 s); the units guess avoids them
         assert "numpy.ma" not in found
-    if args[0] == "convert" and not writes_bvh:  # a skeleton is authored without the schema classes (0.015 s)
-        assert "pxr" in found and found & {"pxr.UsdGeom", "pxr.UsdSkel"} == set()
+    if args[0] == "convert" and not writes_bvh:  # a skeleton is authored into an Sdf layer: no Usd.Stage, no
+        # schema classes, no UsdValidation (0.03 s; io/usd_schema.py, io/usd_check.py)
+        assert "pxr" in found and found & {"pxr.Usd", "pxr.UsdGeom", "pxr.UsdSkel", "pxr.UsdValidation"} == set()
 
 
 def test_version_and_help_import_no_numpy():

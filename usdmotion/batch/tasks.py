@@ -140,14 +140,13 @@ def motion_facts(motion) -> dict:
 
 
 def convert_task(job: Job, row: dict) -> dict:
-    """``usdmotion convert SRC OUT [--mesh]``: validation problems become warnings."""
+    """``usdmotion convert SRC OUT [--mesh]``, USD outputs validated (a problem fails the take, nothing written)."""
     from usdmotion.io.convert import check_convert_paths, convert_motion, kept_for
 
     out = job.outputs["motion"]
     check_convert_paths(job.source, out, job.params.get("mesh", False))
     motion = kept_for(_read(job), out)
-    for problem in convert_motion(motion, out, job.params.get("mesh", False), job.params.get("validate", True)):
-        warnings.warn(f"{out}: {problem}", stacklevel=1)
+    convert_motion(motion, out, job.params.get("mesh", False), job.params.get("validate", True))
     return motion_facts(motion)
 
 

@@ -177,7 +177,7 @@ def write_motion(motion: Motion | list[Motion], path: str | os.PathLike, **optio
     if kind == "usd":
         from usdmotion.io.usd import write_usd
 
-        return write_usd(motion, path, **{k: v for k, v in options.items() if k in ("name", "decorate")})
+        return write_usd(motion, path, **{k: v for k, v in options.items() if k in ("name", "decorate", "validate")})
     if kind == "gltf":
         from usdmotion.io.gltf import write_gltf
 

@@ -39,15 +39,17 @@ def kept_for(motion: Motion, output: str | os.PathLike) -> Motion:
 
 
 def convert_motion(motion: Motion | list[Motion], output: str | os.PathLike, mesh: bool = False,
-                   validate: bool = True) -> list[str]:
-    """Write ``motion`` to ``output`` (format by extension, atomically); return validation problems.
+                   validate: bool = False) -> None:
+    """Write ``motion`` to ``output`` (format by extension, atomically).
 
     Args:
         motion: the motion, or a one-item list holding the caller's only reference: handed
             over, a long take's arrays are freed while its samples are written (USD output,
             see :func:`usdmotion.io.usd.write_usd`).
         mesh: add a volumetric body mesh skinned to the skeleton (USD and glTF outputs).
-        validate: run ``pxr.UsdValidation`` on a USD output; the problems are returned, not raised.
+        validate: run ``pxr.UsdValidation`` on a USD output before it replaces ``output``; an
+            error raises ``OutputError`` and nothing is written (every USD output gets the
+            writer's structural check: :mod:`usdmotion.io.usd_check`).
     """
     output = Path(output)
     options = {}
@@ -61,9 +63,6 @@ def convert_motion(motion: Motion | list[Motion], output: str | os.PathLike, mes
             from usdmotion.io.usd_mesh import body_decorator  # --mesh only
 
             options["decorate"] = body_decorator(body)
-    write_motion(motion, output, **options)
     if validate and output.suffix.lower() in USD_SUFFIXES:
-        from usdmotion.io.usd import validate_stage  # USD outputs only: a BVH convert imports no USD module
-
-        return list(validate_stage(str(output)))
-    return []
+        options["validate"] = True
+    write_motion(motion, output, **options)

@@ -32,8 +32,9 @@ import numpy as np
 from usdmotion.errors import OutputError, UsdMotionWarning, UsdReadError
 from usdmotion.io.atomic import atomic_output
 from usdmotion.io.usd_ar import ar_quick_look_problems, finish_stage
+from usdmotion.io.usd_check import check_skeleton_layer
 from usdmotion.io.usd_read import read_usd_skeleton
-from usdmotion.io.usd_schema import schema_attribute
+from usdmotion.io.usd_schema import define_prim, schema_attribute, schema_relationship
 from usdmotion.io.usd_skin import add_skinned_meshes
 from usdmotion.kinematics import compose_transforms, position_bounds, rest_pose
 from usdmotion.motion import Motion
@@ -121,30 +122,30 @@ def _drained(items: list) -> Iterator:
         yield items.pop()
 
 
-def define_skeleton(stage, motion: Motion, root_path: str, frames: FrameSamples | None = None):
-    """Author SkelRoot, Skeleton and SkelAnimation for ``motion`` under ``root_path``.
+def define_skeleton(layer, motion: Motion, root_path: str, frames: FrameSamples | None = None):
+    """Author SkelRoot, Skeleton and SkelAnimation for ``motion`` under ``root_path`` in ``layer``.
 
     ``frames``: the animation's samples when ``motion`` no longer holds them (only its
     skeleton is read then; see :func:`write_usd`); default: ``FrameSamples.of(motion)``.
-    Returns the Skeleton's ``Usd.Prim`` (``UsdSkel.Skeleton(prim)`` gives the schema).
-    Authored through the generic prim API as the ``UsdSkel``/``UsdGeom`` schema classes
-    author it (:mod:`usdmotion.io.usd_schema`): the same layer, without their import.
+    Returns the Skeleton's ``Sdf.PrimSpec``. Authored into the ``Sdf.Layer`` as
+    ``Usd.Stage`` and the ``UsdSkel``/``UsdGeom`` schema classes author it
+    (:mod:`usdmotion.io.usd_schema`): the same layer, without importing ``pxr.Usd``.
     """
     from pxr import Sdf, Vt
 
     types = Sdf.ValueTypeNames
-    root = stage.DefinePrim(root_path, "SkelRoot")
-    stage.SetDefaultPrim(root)
-    stage.SetMetadata("upAxis", "Y" if motion.up_axis == "Y" else "Z")  # UsdGeom.SetStageUpAxis
-    stage.SetMetadata("metersPerUnit", motion.meters_per_unit)          # UsdGeom.SetStageMetersPerUnit
-    stage.SetTimeCodesPerSecond(motion.fps)
-    stage.SetFramesPerSecond(motion.fps)
+    root = define_prim(layer, root_path, "SkelRoot")
+    layer.defaultPrim = root.name                                                 # stage.SetDefaultPrim
+    layer.pseudoRoot.SetInfo("upAxis", "Y" if motion.up_axis == "Y" else "Z")     # UsdGeom.SetStageUpAxis
+    layer.pseudoRoot.SetInfo("metersPerUnit", motion.meters_per_unit)             # UsdGeom.SetStageMetersPerUnit
+    layer.timeCodesPerSecond = motion.fps
+    layer.framesPerSecond = motion.fps
     frames = FrameSamples.of(motion) if frames is None else frames
-    stage.SetStartTimeCode(0)
-    stage.SetEndTimeCode(max(frames.n_frames - 1, 0))
+    layer.startTimeCode = 0
+    layer.endTimeCode = max(frames.n_frames - 1, 0)
 
     tokens = Vt.TokenArray(joint_path_tokens(motion.joint_names, motion.parents))
-    skel = stage.DefinePrim(f"{root_path}/Skeleton", "Skeleton")
+    skel = define_prim(layer, f"{root_path}/Skeleton", "Skeleton")
     schema_attribute(skel, "joints", types.TokenArray, tokens, uniform=True)
     schema_attribute(skel, "jointNames", types.TokenArray, Vt.TokenArray(list(motion.joint_names)), uniform=True)
     rest_local, rest_world = _rest_transforms(motion)
@@ -157,28 +158,27 @@ def define_skeleton(stage, motion: Motion, root_path: str, frames: FrameSamples 
     }
     if motion.channels is not None:
         custom["channels"] = Vt.StringArray([" ".join(c) for c in motion.channels])
-    skel.SetCustomDataByKey(CUSTOM_KEY, custom)
+    skel.SetInfo("customData", {CUSTOM_KEY: custom})                             # prim.SetCustomDataByKey
 
-    anim = stage.DefinePrim(f"{root_path}/Animation", "SkelAnimation")
+    anim = define_prim(layer, f"{root_path}/Animation", "SkelAnimation")
     schema_attribute(anim, "joints", types.TokenArray, tokens, uniform=True)
     scales = Vt.Vec3hArray.FromNumpy(np.ones((motion.n_joints, 3), np.float16))
     schema_attribute(anim, "scales", types.Half3Array, scales)
     translations_attr = schema_attribute(anim, "translations", types.Float3Array)
     rotations_attr = schema_attribute(anim, "rotations", types.QuatfArray)
-    skel.AddAppliedSchema("SkelBindingAPI")  # UsdSkel.BindingAPI.Apply
-    skel.CreateRelationship("skel:animationSource", False).SetTargets([anim.GetPath()])
+    skel.SetInfo("apiSchemas", Sdf.TokenListOp.Create(prependedItems=["SkelBindingAPI"]))  # UsdSkel.BindingAPI.Apply
+    schema_relationship(skel, "skel:animationSource", [anim.path])
 
     weights_path = None
     if frames.blend_shape_weights is not None:
         schema_attribute(anim, "blendShapes", types.TokenArray, Vt.TokenArray(list(motion.blend_shape_names)),
                          uniform=True)
-        weights_path = schema_attribute(anim, "blendShapeWeights", types.FloatArray).GetPath()
-    layer = stage.GetRootLayer()
-    t_path, r_path = translations_attr.GetPath(), rotations_attr.GetPath()
+        weights_path = schema_attribute(anim, "blendShapeWeights", types.FloatArray).path
+    t_path, r_path = translations_attr.path, rotations_attr.path
     offsets = motion.offsets.astype(np.float32)
     if frames.n_frames == 0:
-        translations_attr.Set(Vt.Vec3fArray.FromNumpy(offsets))
-        rotations_attr.Set(Vt.QuatfArray.FromNumpy(np.tile(np.float32([0, 0, 0, 1]), (motion.n_joints, 1))))
+        translations_attr.default = Vt.Vec3fArray.FromNumpy(offsets)
+        rotations_attr.default = Vt.QuatfArray.FromNumpy(np.tile(np.float32([0, 0, 0, 1]), (motion.n_joints, 1)))
     set_sample, vec3f, quatf = layer.SetTimeSample, Vt.Vec3fArray.FromNumpy, Vt.QuatfArray.FromNumpy
     with Sdf.ChangeBlock():
         start = 0
@@ -220,7 +220,7 @@ def float32_samples(motion: Motion, start: int, stop: int) -> tuple[np.ndarray, 
 
 
 def write_usd(motion: Motion | list[Motion], path: str | os.PathLike, name: str | None = None,
-              decorate=None) -> Path:
+              decorate=None, validate: bool = False) -> Path:
     """Write ``motion`` as a UsdSkel stage (``.usda``, ``.usdc``, ``.usd`` or ``.usdz``).
 
     Args:
@@ -234,8 +234,16 @@ def write_usd(motion: Motion | list[Motion], path: str | os.PathLike, name: str 
         name: SkelRoot prim name (default: the file stem, made a valid identifier).
         decorate: optional ``callable(stage, skeleton)`` that adds prims (e.g. a skinned
             mesh) before the stage is saved.
+        validate: also run every ``pxr.UsdValidation`` validator on the written file
+            (:func:`validate_stage`) before it replaces ``path``; an error raises
+            ``OutputError`` and nothing is written. Without it, the layer's UsdSkel layout
+            is still checked (:func:`usdmotion.io.usd_check.check_skeleton_layer`, no ``pxr.Usd``
+            import); the suite validates every kind of stage the writer makes.
+
+    The layer is authored through ``Sdf`` (:mod:`usdmotion.io.usd_schema`); a ``Usd.Stage``
+    is opened on it only to add meshes.
     """
-    from pxr import Usd
+    from pxr import Sdf
 
     path = Path(path)
     ext = path.suffix.lower()
@@ -246,7 +254,8 @@ def write_usd(motion: Motion | list[Motion], path: str | os.PathLike, name: str 
     _check_float32(motion, path)
     root_path = "/" + _stage_name(path, name)
     frames = FrameSamples.of(motion, made_now=handed_over)
-    bounds = position_bounds(motion) if motion.n_frames else None
+    n_frames = motion.n_frames
+    bounds = position_bounds(motion) if n_frames else None
     if handed_over:
         motion = motion.sliced(0, 0)  # the skeleton: the take's arrays go with the caller's last reference
     with atomic_output(path) as tmp:
@@ -256,24 +265,34 @@ def write_usd(motion: Motion | list[Motion], path: str | os.PathLike, name: str 
             scratch = Path(tempfile.mkdtemp(prefix="usdmotion-"))
             layer_path = scratch / (path.stem + ".usdc")
         try:
-            stage = Usd.Stage.CreateNew(str(layer_path))
-            skel = define_skeleton(stage, motion, root_path, frames)
+            layer = Sdf.Layer.CreateNew(str(layer_path))
+            skel_path = define_skeleton(layer, motion, root_path, frames).path
+            stage = None
             if motion.meshes or decorate is not None:
-                from pxr import UsdSkel  # meshes only (start-up, see define_skeleton)
+                from pxr import Usd, UsdSkel  # meshes only (start-up, see define_skeleton)
 
+                stage = Usd.Stage.Open(layer)
+                skeleton = UsdSkel.Skeleton(stage.GetPrimAtPath(skel_path))
                 if motion.meshes:
-                    add_skinned_meshes(stage, UsdSkel.Skeleton(skel), motion, path)
+                    add_skinned_meshes(stage, skeleton, motion, path)
                 if decorate is not None:
-                    decorate(stage, UsdSkel.Skeleton(skel))
+                    decorate(stage, skeleton)
 
-            finish_stage(stage, skel, motion, bounds)
-            stage.GetRootLayer().Save()
-            del stage
+            finish_stage(layer, root_path, motion, bounds, stage)
+            check_skeleton_layer(layer, root_path, motion.n_joints, n_frames, path)
+            layer.Save()
+            del stage, layer
             if ext == ".usdz":
-                from pxr import Sdf, UsdUtils  # only here: UsdUtils imports UsdShade, Sdr, ... (~0.03 s)
+                from pxr import UsdUtils  # only here: UsdUtils imports UsdShade, Sdr, ... (~0.03 s)
 
                 if not UsdUtils.CreateNewUsdzPackage(Sdf.AssetPath(str(layer_path)), str(tmp)):
                     raise OutputError(f"{path}: usdz packaging failed")
+            if validate:
+                problems = validate_stage(str(tmp))
+                if problems:
+                    raise OutputError(f"{path}: the written stage fails pxr.UsdValidation: {problems[0]}"
+                                      f"{f' (and {len(problems) - 1} more)' if len(problems) > 1 else ''}; "
+                                      "nothing written")
         finally:
             if scratch is not None:
                 shutil.rmtree(scratch, ignore_errors=True)

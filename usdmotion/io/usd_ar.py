@@ -45,19 +45,20 @@ UNCHECKED = (
 DEFAULT_COLOR = (0.62, 0.62, 0.62)
 
 
-def finish_stage(stage, skeleton, motion, bounds: tuple[np.ndarray, np.ndarray] | None = None) -> None:
+def finish_stage(layer, root_path: str, motion, bounds: tuple[np.ndarray, np.ndarray] | None = None,
+                 stage=None) -> None:
     """Author ``kind``, ``extent``/``extentsHint`` and materials (see the module docstring).
 
-    ``skeleton``: the Skeleton (``Usd.Prim`` or ``UsdSkel.Skeleton``) under the SkelRoot.
-    ``bounds``: ``position_bounds`` of the animation when ``motion`` holds only its skeleton.
-    A skeleton-only stage is finished without importing ``pxr.UsdGeom``/``UsdSkel`` (start-up)."""
-    from pxr import Kind, Usd
-
-    root = skeleton.GetPrim().GetParent()
-    Usd.ModelAPI(root).SetKind(Kind.Tokens.component)
-    meshes = _meshes(root)
+    ``layer``: the ``Sdf.Layer`` written; ``root_path``: its SkelRoot. ``bounds``: ``position_bounds``
+    of the animation when ``motion`` holds only its skeleton. ``stage``: the ``Usd.Stage`` on
+    ``layer`` when meshes were added (their reach grows the extent, and they get materials); a
+    skeleton-only layer is finished without importing ``pxr.Usd``, ``UsdGeom`` or ``UsdSkel`` (start-up)."""
+    root = layer.GetPrimAtPath(root_path)
+    root.SetInfo("kind", "component")  # Usd.ModelAPI(root).SetKind(Kind.Tokens.component)
+    meshes = _meshes(stage.GetPrimAtPath(root_path)) if stage is not None else []
     _extent(stage, root, motion, meshes, bounds)
-    _materials(stage, root, meshes)
+    if meshes:
+        _materials(stage, stage.GetPrimAtPath(root_path), meshes)
 
 
 def _meshes(root) -> list:
@@ -70,6 +71,7 @@ def _meshes(root) -> list:
 
 
 def _extent(stage, root, motion, meshes: list, bounds) -> None:
+    """``extent`` and ``extentsHint`` on ``root`` (``Sdf.PrimSpec``); ``meshes``: ``Usd.Prim`` of ``stage``."""
     from pxr import Gf, Sdf, Vt
 
     if bounds is not None:
@@ -94,8 +96,6 @@ def _extent(stage, root, motion, meshes: list, bounds) -> None:
 
 
 def _materials(stage, root, meshes: list) -> None:
-    if not meshes:
-        return
     from pxr import Gf, Sdf, UsdGeom, UsdShade  # only here: UsdShade imports Sdr (skeleton-only stages need neither)
 
     for prim in meshes:
