@@ -9,6 +9,12 @@ It also collects garbage less often: the imports (typer, NumPy, pxr) make about 
 objects and almost no garbage, and the default threshold (a collection every 700 new
 objects) spent 0.01 s of every command's CPU time walking them (``benchmarks/startup.py``);
 every 50,000 new objects keeps cyclic garbage collected in long runs (the Studio's server).
+
+And it lets NumPy's OpenBLAS worker threads sleep as soon as they are idle
+(``OPENBLAS_THREAD_TIMEOUT=4``, unless set): by default each spins, polling for work, for
+about 2^28 cycles after the library loads, although no command's BLAS calls come that early:
+0.015–0.02 s of CPU time of every command that imports NumPy, taken from the main thread on a
+busy machine (``benchmarks/startup.py``). BLAS calls still use every core.
 """
 
 import gc
@@ -21,10 +27,16 @@ def _interrupted_while_starting(signum: int, frame) -> None:
     os._exit(128 + signum)
 
 
+def prepare_process() -> None:
+    """The process settings of the module docstring (``benchmarks/startup.py`` applies them too)."""
+    gc.set_threshold(50_000, 20, 10)
+    os.environ.setdefault("OPENBLAS_THREAD_TIMEOUT", "4")  # read when NumPy loads OpenBLAS
+
+
 def run() -> None:
     """Console-script entry point."""
     signal.signal(signal.SIGINT, _interrupted_while_starting)
-    gc.set_threshold(50_000, 20, 10)  # see the module docstring
+    prepare_process()
     from usdmotion.cli import run as run_cli
 
     run_cli()
