@@ -111,7 +111,7 @@ with warnings.catch_warnings():
     warnings.simplefilter("ignore")
     motion = kept_for(read_motion(sys.argv[1]), sys.argv[2])
 mark("read the BVH (parse, Euler to quaternions, units guess)")
-convert_motion([motion], sys.argv[2])
+convert_motion(motion, sys.argv[2])  # a plain Motion: older trees take no handed-over list
 mark("write the .usdc as convert does by default (layer, samples, extent, check, save; validation where on)")
 print("PHASES " + json.dumps(marks))
 """

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -71,3 +72,17 @@ def test_importing_the_renderer_loads_no_gl_video_or_usd_library():
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == "[]"
+
+
+def test_info_opens_a_usd_file_once(tmp_path):
+    from usdmotion.io import read_motion, write_motion
+
+    stage = write_motion(read_motion(WALK, units="asf"), tmp_path / "walk.usda")  # text: every open parses it all
+    env = {**os.environ, "TF_DEBUG": "USD_STAGE_OPEN USD_STAGE_CACHE"}  # usd-core's own account of its opens
+    done = subprocess.run([sys.executable, "-m", "usdmotion", "info", str(stage), "--json"], capture_output=True,
+                          text=True, timeout=300, env=env)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.count(f"UsdStage::Open(rootLayer=@{stage}@") == 2  # read, then the skeletons listed ...
+    assert done.stdout.count("Creating new UsdStage") == 1  # ... from the stage the read opened
+    summary = json.loads(done.stdout[done.stdout.index("{\n"):])
+    assert summary["skeletons"] == ["/walk/Skeleton"] and summary["frames"] == 524

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import warnings
 
@@ -21,7 +22,10 @@ def info(
     """Describe a motion file: skeleton, timing, channels and units."""
     from usdmotion.summary import describe
 
-    motion = read.read(source)
+    is_usd = source.suffix.lower() in (".usd", ".usda", ".usdc", ".usdz")
+    with _one_stage(is_usd):  # a USD file is opened once: read, then its skeletons listed
+        motion = read.read(source)
+        skeletons = _skeletons(source) if is_usd else None
     summary = {"file": str(source), **describe(motion)}
     guessed = [o for o, v in (("units", read.units), ("up_axis", read.up_axis)) if v is None or v == "auto"]
     if source.suffix.lower() == ".bvh" and guessed:  # BVH states neither: say what the body says
@@ -30,20 +34,35 @@ def info(
         guess = guess_body(motion, up="up_axis" in guessed)
         summary["guessed"] = {o: {"value": getattr(guess, o), "reason": getattr(guess, f"{o.split('_')[0]}_reason")}
                               for o in guessed}
-    if source.suffix.lower() in (".usd", ".usda", ".usdc", ".usdz"):
-        from usdmotion.io.usd import _open_stage
-        from usdmotion.io.usd_read import list_skeletons
-        from usdmotion.usd_diagnostics import usd_diagnostics
-
-        with warnings.catch_warnings(), usd_diagnostics(source):  # what USD says was said by read()
-            warnings.simplefilter("ignore")
-            summary["skeletons"] = list_skeletons(_open_stage(source))
+    if is_usd:
+        summary["skeletons"] = skeletons
         summary["meshes"] = [{"name": m.name, "points": len(m.points), "blend_shapes": [b.name for b in m.blend_shapes]}
                              for m in motion.meshes]
     if as_json:
         typer.echo(json.dumps(summary, indent=2))
         return
     _print_summary(summary)
+
+
+def _one_stage(is_usd: bool):
+    """A context in which opening the same USD file again finds the stage already open
+    (``Usd.StageCacheContext``), or nothing to do for other formats."""
+    if not is_usd:
+        return contextlib.nullcontext()
+    from pxr import Usd
+
+    return Usd.StageCacheContext(Usd.StageCache())
+
+
+def _skeletons(source) -> list[str]:
+    """The Skeleton prim paths of the stage at ``source`` (the one ``read`` opened, in the cache)."""
+    from usdmotion.io.usd import _open_stage
+    from usdmotion.io.usd_read import list_skeletons
+    from usdmotion.usd_diagnostics import usd_diagnostics
+
+    with warnings.catch_warnings(), usd_diagnostics(source):  # what USD says was said by read()
+        warnings.simplefilter("ignore")
+        return list_skeletons(_open_stage(source))
 
 
 def _print_summary(s: dict) -> None:

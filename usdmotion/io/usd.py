@@ -280,7 +280,8 @@ def write_usd(motion: Motion | list[Motion], path: str | os.PathLike, name: str 
 
             finish_stage(layer, root_path, motion, bounds, stage)
             check_skeleton_layer(layer, root_path, motion.n_joints, n_frames, path)
-            layer.Save()
+            if not layer.Save():  # e.g. the disk full: USD says why on stderr and returns False
+                raise OutputError(f"{path}: cannot write: USD could not save the layer; nothing written")
             del stage, layer
             if ext == ".usdz":
                 from pxr import UsdUtils  # only here: UsdUtils imports UsdShade, Sdr, ... (~0.03 s)
