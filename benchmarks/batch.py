@@ -98,7 +98,7 @@ def sequential(library: Path, out: Path, operation: str) -> dict:
             dst.parent.mkdir(parents=True, exist_ok=True)
             motion = read_motion(path)
             if operation == "convert":
-                convert_motion(motion, f"{dst}.usdc")
+                convert_motion(motion, f"{dst}.usdc", validate=True)  # as the batch task does
                 continue
             try:
                 body = body_model(motion, "male", None, source=str(path))
