@@ -83,8 +83,8 @@ def _authored_by_schema_classes(ours, path) -> None:
     """``ours`` (a written stage) authored again into ``path`` with usd-core's schema classes
     (UsdSkel.Root/Skeleton/Animation/BindingAPI, UsdGeom's stage metadata, Boundable and
     ModelAPI), in write_usd's order, taking every value from ``ours``: the reference for
-    write_usd's generic-API authoring (usdmotion/io/usd_schema.py), which must write the
-    same layer without importing UsdSkel/UsdGeom."""
+    write_usd's authoring straight into an Sdf.Layer (usdmotion/io/usd_schema.py), which must
+    write the same layer without importing Usd, UsdSkel or UsdGeom."""
     source = Usd.Stage.Open(str(ours))
     root_in = source.GetDefaultPrim()
     skel_in, anim_in = UsdSkel.Skeleton(root_in.GetChild("Skeleton")), UsdSkel.Animation(root_in.GetChild("Animation"))
