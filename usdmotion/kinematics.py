@@ -114,8 +114,9 @@ def position_bounds(motion: Motion, chunk_frames: int = 2048) -> tuple[np.ndarra
 
     def bounds_of(frames: slice) -> None:  # threads take turns over slices of frames (min/max: exact in any order)
         for start in range(frames.start, frames.stop, chunk_frames):
-            part = motion.sliced(start, min(start + chunk_frames, frames.stop))
-            planes = [p for _, _, p in _fk_levels(part.rotations, local_translations(part), part.parents)]
+            part = slice(start, min(start + chunk_frames, frames.stop))  # views: no Motion (a copy) per chunk
+            planes = [p for _, _, p in _fk_levels(motion.rotations[part], local_translations(motion, part),
+                                                  motion.parents)]
             lows.append([min(float(level[k].min()) for level in planes) for k in range(3)])
             highs.append([max(float(level[k].max()) for level in planes) for k in range(3)])
 
@@ -127,17 +128,18 @@ def position_bounds(motion: Motion, chunk_frames: int = 2048) -> tuple[np.ndarra
 _THREAD_ITEMS = 40_000
 
 
-def local_translations(motion: Motion) -> np.ndarray:
-    """Local translation of every joint at every frame, ``(F, J, 3)`` file units.
+def local_translations(motion: Motion, frames: slice = slice(None)) -> np.ndarray:
+    """Local translation of every joint at every frame (of ``frames``), ``(F, J, 3)`` file units.
 
     Root: ``root_translation``; joints with position channels: ``joint_translations``;
     all others: ``offsets``.
     """
+    root = motion.root_translation[frames]
     if motion.joint_translations is not None:
-        out = np.array(motion.joint_translations)
+        out = np.array(motion.joint_translations[frames])
     else:
-        out = np.broadcast_to(motion.offsets, (motion.n_frames,) + motion.offsets.shape).copy()
-    out[:, 0] = motion.root_translation
+        out = np.broadcast_to(motion.offsets, (len(root),) + motion.offsets.shape).copy()
+    out[:, 0] = root
     return out
 
 
