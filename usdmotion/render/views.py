@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -10,6 +11,7 @@ from usdmotion.body_parts import NO_BODY, body_groups
 from usdmotion.errors import UsdMotionError
 from usdmotion.kinematics import fk_arrays, local_translations
 from usdmotion.motion import Motion
+from usdmotion.render import CHUNK
 from usdmotion.render.angles import AngleOverlay, angle_values, parse_angle
 from usdmotion.render.camera import forward_direction, project_frames
 from usdmotion.render.compare import clock_text
@@ -37,6 +39,15 @@ def choose_body(motion: Motion, which: str, resolution: int):
     if which == "stage":
         raise UsdMotionError("--body stage: the input has no skinned mesh that fits its skeleton")
     return build_body(motion, resolution=resolution)
+
+
+@dataclass(frozen=True)
+class Skinned:
+    """A chunk of skinned frames, render space (metres, Y up)."""
+
+    joints: np.ndarray                   # (K, J, 3) joint positions
+    positions: np.ndarray | None = None  # (K, V, 3) body vertices (None: no body)
+    normals: np.ndarray | None = None    # (K, V, 3) unit vertex normals
 
 
 class Actor:
@@ -80,22 +91,30 @@ class Actor:
     def _space(self, points: np.ndarray) -> np.ndarray:
         return (points * self.scale) @ self.turn.T + self.shift
 
-    def prepare(self, index: np.ndarray) -> None:
-        """Skin the output frames ``index`` (one chunk) at once."""
+    def skin(self, index: np.ndarray) -> Skinned:
+        """The output frames ``index`` (one chunk) skinned at once (a pure function of the motion)."""
         frames = self.frames[index]
         world_q, world_p = fk_arrays(self.motion.rotations[frames], self.local_t[frames], self.motion.parents)
-        self.joints = self._space(world_p)
-        if self.body is not None:
-            matrices = skinning_matrices(world_q, world_p, self.body.bind_transforms)
-            positions, normals = lbs(self.body.vertices, self.weights, matrices, self.body.normals)
-            self.normals = normals @ self.turn.T
-            self.positions = self._space(positions) - self.inset * self.normals
+        joints = self._space(world_p)
+        if self.body is None:
+            return Skinned(joints)
+        matrices = skinning_matrices(world_q, world_p, self.body.bind_transforms)
+        positions, normals = lbs(self.body.vertices, self.weights, matrices, self.body.normals)
+        normals = normals @ self.turn.T
+        return Skinned(joints, self._space(positions) - self.inset * normals, normals)
 
-    def update(self, k: int) -> None:
+    def prepare(self, index: np.ndarray) -> None:
+        """Skin the output frames ``index`` for :meth:`update` (``self.joints``: ``(K, J, 3)`` m)."""
+        self.chunk = self.skin(index)
+        self.joints = self.chunk.joints
+
+    def update(self, k: int, chunk: Skinned | None = None) -> None:
+        """Load frame ``k`` of ``chunk`` (default: the last :meth:`prepare`'s) into the meshes."""
+        chunk = self.chunk if chunk is None else chunk
         if self.body is not None:
-            self.body_mesh.update(self.positions[k], self.normals[k])
+            self.body_mesh.update(chunk.positions[k], chunk.normals[k])
         if self.stick is not None:
-            self.stick.update(self.joints[k])
+            self.stick.update(chunk.joints[k])
 
 
 class Views:
@@ -123,6 +142,7 @@ class Views:
         self.shadow = self._contact_shadow() if options.contact_shadow else None
         self.strip = self._plot_strip(motion) if options.panel else None
         self.view_nodes = self._view_cameras(pyrender) if plan.cameras else []
+        self.skin_seconds = 0.0
         self.renderer = offscreen_renderer(*plan.panel, msaa=options.msaa, fxaa=options.fxaa)
 
     def _contact_shadow(self):
@@ -216,46 +236,75 @@ class Views:
             raise UsdMotionError(f"--trace: {exc.args[0]}") from None
 
     def run(self, emit, progress, timings: dict) -> None:
-        """Render every frame; ``emit(image, index)`` receives each finished image."""
+        """Render every frame; ``emit(images, index)`` receives each frame's rendered views, which
+        :meth:`finish` turns into the output image (on the writer thread: see
+        :class:`~usdmotion.render.output.WriterThread`).
+
+        The next chunk of frames is skinned on a helper thread while this one renders (NumPy
+        releases the GIL): the skinning leaves the rendering thread's path.
+        """
+        from concurrent.futures import ThreadPoolExecutor
+
         plan, options = self.plan, self.options
-        skin = draw = 0.0
+        draw = wait = 0.0
         n = len(plan.frames)
-        for start in range(0, n, 32):
-            index = np.arange(start, min(start + 32, n))
-            t0 = time.perf_counter()
-            for actor in self.actors:
-                actor.prepare(index)
-            skin += time.perf_counter() - t0
-            for k, i in enumerate(index):
+        chunks = [np.arange(start, min(start + CHUNK, n)) for start in range(0, n, CHUNK)]
+        with ThreadPoolExecutor(1, thread_name_prefix="usdmotion-skin") as pool:
+            skinned = pool.submit(self._skin, chunks[0])
+            for c, index in enumerate(chunks):
                 t0 = time.perf_counter()
-                self.renderer._platform.make_current()
-                for actor in self.actors:
-                    actor.update(k)
-                if self.shadow is not None:
-                    self.shadow.update(self.actors[0].joints[k])
-                images = []
-                if self.view_nodes:
-                    scene = self.scenes[0]
-                    for view, (node, cam) in enumerate(zip(self.view_nodes, plan.cameras)):
-                        for k, grid in enumerate(self.view_grids):
-                            grid.is_visible = k == view
-                        scene.main_camera_node = node
-                        scene.set_pose(node, cam.poses[i])
-                        images.append(render_rgb(self.renderer, scene, options.shadows))
-                else:
-                    for scene in self.scenes:
-                        scene.set_pose(scene.camera_node, plan.camera.poses[i])
-                        images.append(render_rgb(self.renderer, scene, options.shadows))
-                if self.angles is not None:
-                    self.angles.draw(images[0], i)
-                if options.overlay:
-                    self._overlay(images, i)
-                image = self._compose(images, i)
-                draw += time.perf_counter() - t0
-                emit(image, int(i))
-                if progress is not None:
-                    progress(int(i) + 1, n, "rendering")
-        timings.update(skin=skin, render=draw)
+                chunk = skinned.result()
+                wait += time.perf_counter() - t0
+                if c + 1 < len(chunks):
+                    skinned = pool.submit(self._skin, chunks[c + 1])
+                for k, i in enumerate(index):
+                    t0 = time.perf_counter()
+                    self.renderer._platform.make_current()
+                    for actor, data in zip(self.actors, chunk):
+                        actor.update(k, data)
+                    if self.shadow is not None:
+                        self.shadow.update(chunk[0].joints[k])
+                    images = self._render(i)
+                    draw += time.perf_counter() - t0
+                    emit(images, int(i))
+                    if progress is not None:
+                        progress(int(i) + 1, n, "rendering")
+            skinned.cancel()
+        timings.update(skin=self.skin_seconds, skin_wait=wait, render=draw)
+
+    def _skin(self, index: np.ndarray) -> list:
+        """Every actor's :class:`Skinned` frames ``index`` (on the helper thread)."""
+        t0 = time.perf_counter()
+        out = [actor.skin(index) for actor in self.actors]
+        self.skin_seconds += time.perf_counter() - t0
+        return out
+
+    def _render(self, i: int) -> list[np.ndarray]:
+        """The views of output frame ``i``: ``(H, W, 3)`` uint8 images, one per view."""
+        plan, options = self.plan, self.options
+        images = []
+        if self.view_nodes:
+            scene = self.scenes[0]
+            for view, (node, cam) in enumerate(zip(self.view_nodes, plan.cameras)):
+                for k, grid in enumerate(self.view_grids):
+                    grid.is_visible = k == view
+                scene.main_camera_node = node
+                scene.set_pose(node, cam.poses[i])
+                images.append(render_rgb(self.renderer, scene, options.shadows))
+        else:
+            for scene in self.scenes:
+                scene.set_pose(scene.camera_node, plan.camera.poses[i])
+                images.append(render_rgb(self.renderer, scene, options.shadows))
+        return images
+
+    def finish(self, images: list[np.ndarray], i: int) -> np.ndarray:
+        """The output image of frame ``i`` from its rendered views: angle arcs and labels, the
+        frame/time text, the views composed with the plot strip (see :meth:`_compose`)."""
+        if self.angles is not None:
+            self.angles.draw(images[0], i)
+        if self.options.overlay:
+            self._overlay(images, i)
+        return self._compose(images, i)
 
     def _compose(self, images: list[np.ndarray], i: int) -> np.ndarray:
         """The output frame: views side by side (or in the layout's grid, padded to the
