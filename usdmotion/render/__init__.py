@@ -4,7 +4,7 @@
 figure or both, with a ground grid, trajectory traces, a frame/time overlay, and an
 optional second motion beside it or overlaid as a translucent ghost. Frames stream
 through a bounded queue into a writer thread (encoding overlaps rendering); skinning
-runs in chunks of :data:`CHUNK` frames, so memory stays flat however long the motion.
+runs in chunks of :data:`usdmotion.render.views.CHUNK` frames, so memory stays flat however long the motion.
 See ``docs/render.md``.
 """
 
@@ -30,7 +30,6 @@ from usdmotion.render.panel import parse_panel, strip_height
 from usdmotion.render.scene import to_render_space
 from usdmotion.skin import body_size
 
-CHUNK = 32
 STYLES = ("body", "stick", "both")
 COMPARE_MODES = ("ghost", "side")
 
@@ -64,6 +63,7 @@ class RenderOptions:
     panel: str | None = None
     layout: str | None = None
     contact_shadow: bool = True
+    lod: bool = True  # fewer body triangles when the body is drawn small (usdmotion.render.lod); False: all
 
 
 @dataclass(frozen=True)

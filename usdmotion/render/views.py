@@ -11,11 +11,11 @@ from usdmotion.body_parts import NO_BODY, body_groups
 from usdmotion.errors import UsdMotionError
 from usdmotion.kinematics import fk_arrays, local_translations
 from usdmotion.motion import Motion
-from usdmotion.render import CHUNK
 from usdmotion.render.angles import AngleOverlay, angle_values, parse_angle
 from usdmotion.render.camera import forward_direction, project_frames
 from usdmotion.render.compare import clock_text
 from usdmotion.render.gl import DynamicMesh, import_pyrender, offscreen_renderer, render_rgb
+from usdmotion.render.lod import detail, fewer_triangles, pixel_height
 from usdmotion.render.overlay import draw_text
 from usdmotion.render.panel import PlotStrip, panel_series, parse_panel, strip_height
 from usdmotion.render.shadow import ContactShadow
@@ -24,12 +24,16 @@ from usdmotion.skin_stage import stage_body
 from usdmotion.render.scene import (COLORS, StickFigure, add_lights, grid_mesh, material, to_render_space,
                                     tube_mesh)
 
+#: Frames skinned at once (one BLAS product), one chunk ahead of the rendering.
+CHUNK = 32
+
 _UP_Z = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 
 
-def choose_body(motion: Motion, which: str, resolution: int):
+def choose_body(motion: Motion, which: str, resolution: int, keep: float = 1.0):
     """The body to draw: the input's own skinned meshes (``"stage"``; ``"auto"`` when it has
-    any) or the generated one (``"generated"``; ``"auto"`` otherwise)."""
+    any) or the generated one (``"generated"``; ``"auto"`` otherwise), with about ``keep`` of its
+    triangles (:func:`usdmotion.render.lod.fewer_triangles`)."""
     if which not in ("auto", "stage", "generated"):
         raise UsdMotionError(f"--body must be auto, stage or generated, got {which!r}")
     if which != "generated" and motion.meshes:
@@ -38,7 +42,7 @@ def choose_body(motion: Motion, which: str, resolution: int):
             return body
     if which == "stage":
         raise UsdMotionError("--body stage: the input has no skinned mesh that fits its skeleton")
-    return build_body(motion, resolution=resolution)
+    return fewer_triangles(build_body(motion, resolution=resolution), keep)
 
 
 @dataclass(frozen=True)
@@ -54,7 +58,7 @@ class Actor:
     """One motion's body and/or stick figure, skinned a chunk of frames at a time."""
 
     def __init__(self, motion: Motion, frames: np.ndarray, style: str, resolution: int, ghost: bool,
-                 alignment=None, body: str = "auto"):
+                 alignment=None, body: str = "auto", keep: float = 1.0):
         self.motion, self.frames = motion, frames
         self.local_t = local_translations(motion)
         self.turn = (_UP_Z if motion.up_axis == "Z" else np.eye(3)) * 1.0
@@ -66,7 +70,7 @@ class Actor:
         self.nodes = []
         self.inset = 0.0
         if style in ("body", "both"):
-            self.body = choose_body(motion, body, resolution)
+            self.body = choose_body(motion, body, resolution, keep)
             color = COLORS["ghost"] if ghost else COLORS["body"]
             # the ghost sits 1 % of the body size inside its own surface: where both motions
             # agree the opaque main body hides it, so it shows only where they differ
@@ -124,11 +128,14 @@ class Views:
         pyrender = import_pyrender()
         self.plan, self.options = plan, options
         self.side = other is not None and options.compare_mode == "side"
+        root = to_render_space(fk_arrays(motion.rotations[plan.frames], local_translations(motion)[plan.frames],
+                                         motion.parents)[1][:, 0], motion.meters_per_unit, motion.up_axis)
         self.actors = [Actor(motion, plan.frames, options.style, options.body_resolution, ghost=False,
-                             body=options.body)]
+                             body=options.body, keep=self._detail(motion, root))]
         if other is not None:
             self.actors.append(Actor(other, plan.other_frames, options.style, options.body_resolution,
-                                     ghost=not self.side, alignment=plan.alignment))
+                                     ghost=not self.side, alignment=plan.alignment,
+                                     keep=self._detail(other, root)))
         self.labels = options.labels
         self.other_fps = other.fps if other is not None else None
         scenes = [self._scene(pyrender) for _ in range(2 if self.side else 1)]
@@ -144,6 +151,17 @@ class Views:
         self.view_nodes = self._view_cameras(pyrender) if plan.cameras else []
         self.skin_seconds = 0.0
         self.renderer = offscreen_renderer(*plan.panel, msaa=options.msaa, fxaa=options.fxaa)
+
+    def _detail(self, motion: Motion, root: np.ndarray) -> float:
+        """The fraction of ``motion``'s generated body's triangles to draw (:mod:`usdmotion.render.lod`),
+        from its height in pixels in the view that shows it largest, around ``root (N, 3)`` (render
+        space, metres: the main take's root, which a compared take is aligned onto)."""
+        if not self.options.lod:
+            return 1.0
+        size = body_size(motion) * motion.meters_per_unit
+        return max(detail(pixel_height(size, np.linalg.norm(cam.poses[:, :3, 3] - root, axis=1), cam.yfov,
+                                       self.plan.panel[1]))
+                   for cam in (self.plan.cameras or (self.plan.camera,)))
 
     def _contact_shadow(self):
         """The :class:`~usdmotion.render.shadow.ContactShadow` under the main body (None: no body)."""
