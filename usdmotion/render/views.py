@@ -26,6 +26,7 @@ from usdmotion.render.scene import (COLORS, StickFigure, add_lights, grid_mesh, 
 
 #: Frames skinned at once (one BLAS product), one chunk ahead of the rendering.
 CHUNK = 32
+FIRST_CHUNK = 4
 
 _UP_Z = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 
@@ -266,7 +267,9 @@ class Views:
         plan, options = self.plan, self.options
         draw = wait = 0.0
         n = len(plan.frames)
-        chunks = [np.arange(start, min(start + CHUNK, n)) for start in range(0, n, CHUNK)]
+        # a short first chunk: the first frame waits for its skinning, the next ones are skinned meanwhile
+        bounds = np.unique(np.r_[0, np.arange(FIRST_CHUNK, n, CHUNK), n].clip(0, n))
+        chunks = [np.arange(a, b) for a, b in zip(bounds[:-1], bounds[1:])]
         with ThreadPoolExecutor(1, thread_name_prefix="usdmotion-skin") as pool:
             skinned = pool.submit(self._skin, chunks[0])
             for c, index in enumerate(chunks):
