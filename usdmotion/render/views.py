@@ -20,7 +20,7 @@ from usdmotion.render.overlay import draw_text
 from usdmotion.render.panel import PlotStrip, panel_series, parse_panel, strip_height
 from usdmotion.render.shadow import ContactShadow
 from usdmotion.skin import body_size, build_body, centre_of_mass, lbs, skinning_matrices
-from usdmotion.skin_stage import stage_body
+from usdmotion.skin_stage import stage_body_and_shapes
 from usdmotion.render.scene import (COLORS, StickFigure, add_lights, grid_mesh, material, to_render_space,
                                     tube_mesh)
 
@@ -32,18 +32,19 @@ _UP_Z = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 
 
 def choose_body(motion: Motion, which: str, resolution: int, keep: float = 1.0):
-    """The body to draw: the input's own skinned meshes (``"stage"``; ``"auto"`` when it has
-    any) or the generated one (``"generated"``; ``"auto"`` otherwise), with about ``keep`` of its
-    triangles (:func:`usdmotion.render.lod.fewer_triangles`)."""
+    """The body to draw and its animated blend shapes' offsets (``(S, V, 3)`` or ``None``,
+    :func:`usdmotion.skin_stage.stage_body_and_shapes`): the input's own skinned meshes
+    (``"stage"``; ``"auto"`` when it has any) or the generated body (``"generated"``; ``"auto"``
+    otherwise) with about ``keep`` of its triangles (:func:`usdmotion.render.lod.fewer_triangles`)."""
     if which not in ("auto", "stage", "generated"):
         raise UsdMotionError(f"--body must be auto, stage or generated, got {which!r}")
     if which != "generated" and motion.meshes:
-        body = stage_body(motion)
-        if body is not None:
-            return body
+        found = stage_body_and_shapes(motion)
+        if found is not None:
+            return found
     if which == "stage":
         raise UsdMotionError("--body stage: the input has no skinned mesh that fits its skeleton")
-    return fewer_triangles(build_body(motion, resolution=resolution), keep)
+    return fewer_triangles(build_body(motion, resolution=resolution), keep), None
 
 
 @dataclass(frozen=True)
@@ -67,11 +68,11 @@ class Actor:
         if alignment is not None:  # the compared take, turned and moved onto the main one
             self.turn, self.shift = alignment.turn @ self.turn, alignment.shift
         self.scale = motion.meters_per_unit
-        self.body = self.stick = None
+        self.body = self.stick = self.shapes = None
         self.nodes = []
         self.inset = 0.0
         if style in ("body", "both"):
-            self.body = choose_body(motion, body, resolution, keep)
+            self.body, self.shapes = choose_body(motion, body, resolution, keep)
             color = COLORS["ghost"] if ghost else COLORS["body"]
             # the ghost sits 1 % of the body size inside its own surface: where both motions
             # agree the opaque main body hides it, so it shows only where they differ
@@ -104,7 +105,10 @@ class Actor:
         if self.body is None:
             return Skinned(joints)
         matrices = skinning_matrices(world_q, world_p, self.body.bind_transforms)
-        positions, normals = lbs(self.body.vertices, self.weights, matrices, self.body.normals)
+        rest = self.body.vertices
+        if self.shapes is not None:  # blend shapes first, then the skinning (UsdSkel's order)
+            rest = rest + np.einsum("fs,svk->fvk", self.motion.blend_shape_weights[frames], self.shapes)
+        positions, normals = lbs(rest, self.weights, matrices, self.body.normals)
         normals = normals @ self.turn.T
         return Skinned(joints, self._space(positions) - self.inset * normals, normals)
 
