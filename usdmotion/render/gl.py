@@ -152,12 +152,11 @@ def offscreen_renderer(width: int, height: int, msaa: int = 0, fxaa: bool = True
             post.apply(w, h, inner._main_fb_ms, inner._main_fb)  # drawn top row first: no flip here
         GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, inner._main_fb)
         GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
-        pixels = renderer.frame_pool.take((h, w, 4))  # RGBA: a plain copy out of the framebuffer
-        GL.glReadPixels(0, 0, w, h, GL.GL_RGBA, GL.GL_UNSIGNED_BYTE, pixels)
-        return (pixels if post is not None else pixels[::-1])[..., :3], None
+        image = np.empty((h, w, 3), np.uint8)
+        GL.glReadPixels(0, 0, w, h, GL.GL_RGB, GL.GL_UNSIGNED_BYTE, image)
+        return (image if post is not None else image[::-1]), None
 
     inner._read_main_framebuffer = read_color
-    renderer.frame_pool = FramePool()
     return renderer
 
 
@@ -417,39 +416,13 @@ class FxaaPass:
         GL.glEnable(GL.GL_DEPTH_TEST)
 
 
-class FramePool:
-    """Read-back buffers to reuse (any thread may give one back): a new 2.7 MB array a 720p frame
-    costs the rendering thread its page faults; ``glReadPixels`` into a reused RGBA buffer is a
-    plain copy (0.33 ms CPU a 720p frame against 1.33 ms into a new RGB array, llvmpipe)."""
-
-    def __init__(self) -> None:
-        import queue
-
-        self.free = queue.SimpleQueue()
-
-    def take(self, shape: tuple[int, ...]) -> np.ndarray:
-        """A ``uint8`` buffer of ``shape``: a given-back one, or a new one."""
-        while not self.free.empty():
-            buffer = self.free.get_nowait()
-            if buffer.shape == shape:
-                return buffer
-        return np.empty(shape, np.uint8)
-
-    def give(self, image: np.ndarray) -> None:
-        """Give back the buffer ``image`` is (a view of): it is written over from then on."""
-        buffer = image if image.base is None else image.base
-        if isinstance(buffer, np.ndarray) and buffer.dtype == np.uint8 and buffer.flags.owndata:
-            self.free.put(buffer)
-
-
-def render_rgb(renderer, scene, shadows: bool = False, copy: bool = True) -> np.ndarray:
-    """Render ``scene``; an ``(H, W, 3)`` uint8 image: contiguous and the caller's (``copy``),
-    or a view of one of ``renderer.frame_pool``'s buffers, to :meth:`FramePool.give` back."""
+def render_rgb(renderer, scene, shadows: bool = False) -> np.ndarray:
+    """Render ``scene``; a contiguous ``(H, W, 3)`` uint8 image."""
     pyrender = import_pyrender()
     flags = pyrender.RenderFlags.SHADOWS_DIRECTIONAL if shadows else pyrender.RenderFlags.NONE
     color = renderer.render(scene, flags=flags)
     color = color[0] if isinstance(color, tuple) else color
-    return np.array(color, order="C") if copy else color
+    return np.ascontiguousarray(color)
 
 
 class DynamicMesh:

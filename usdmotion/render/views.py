@@ -156,7 +156,6 @@ class Views:
         self.view_nodes = self._view_cameras(pyrender) if plan.cameras else []
         self.skin_seconds = 0.0
         self.renderer = offscreen_renderer(*plan.panel, msaa=options.msaa, fxaa=options.fxaa)
-        self.pool = self.renderer.frame_pool  # read-back buffers, given back by finish (writer thread)
 
     def _detail(self, motion: Motion, root: np.ndarray) -> float:
         """The fraction of ``motion``'s generated body's triangles to draw (:mod:`usdmotion.render.lod`),
@@ -316,11 +315,11 @@ class Views:
                     grid.is_visible = k == view
                 scene.main_camera_node = node
                 scene.set_pose(node, cam.poses[i])
-                images.append(render_rgb(self.renderer, scene, options.shadows, copy=False))
+                images.append(render_rgb(self.renderer, scene, options.shadows))
         else:
             for scene in self.scenes:
                 scene.set_pose(scene.camera_node, plan.camera.poses[i])
-                images.append(render_rgb(self.renderer, scene, options.shadows, copy=False))
+                images.append(render_rgb(self.renderer, scene, options.shadows))
         return images
 
     def finish(self, images: list[np.ndarray], i: int) -> np.ndarray:
@@ -330,12 +329,7 @@ class Views:
             self.angles.draw(images[0], i)
         if self.options.overlay:
             self._overlay(images, i)
-        image = self._compose(images, i)
-        if self.pool is not None:
-            for view in images:
-                if not np.may_share_memory(view, image):
-                    self.pool.give(view)  # read-back buffers: the composed image is a copy
-        return image
+        return self._compose(images, i)
 
     def _compose(self, images: list[np.ndarray], i: int) -> np.ndarray:
         """The output frame: views side by side (or in the layout's grid, padded to the
