@@ -91,7 +91,8 @@ class VideoWriter:
         self.av = av
 
     def write(self, image: np.ndarray, index: int) -> None:
-        frame = self.av.VideoFrame.from_ndarray(image, format="rgb24")
+        """Encode ``image``: ``(H, W, 3)`` RGB or ``(H, W, 4)`` RGBA (alpha ignored) uint8."""
+        frame = self.av.VideoFrame.from_ndarray(image, format="rgba" if image.shape[2] == 4 else "rgb24")
         self.container.mux(self.stream.encode(frame))
 
     def commit(self) -> None:
@@ -122,6 +123,7 @@ class ImageSequenceWriter:
         import OpenImageIO as oiio
 
         name = frame_name(self.name, index)
+        image = np.ascontiguousarray(image[..., :3])  # RGBA frames: without their alpha
         if self.ext == ".exr":
             pixels = (image.astype(np.float32) / 255.0) ** DISPLAY_GAMMA
             spec = oiio.ImageSpec(image.shape[1], image.shape[0], 3, "half")

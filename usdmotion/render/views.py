@@ -14,7 +14,7 @@ from usdmotion.motion import Motion
 from usdmotion.render.angles import AngleOverlay, angle_values, parse_angle
 from usdmotion.render.camera import forward_direction, project_frames
 from usdmotion.render.compare import clock_text
-from usdmotion.render.gl import DynamicMesh, import_pyrender, offscreen_renderer, render_rgb
+from usdmotion.render.gl import DynamicMesh, import_pyrender, offscreen_renderer, render_rgba
 from usdmotion.render.lod import detail, fewer_triangles, pixel_height
 from usdmotion.render.overlay import draw_text
 from usdmotion.render.panel import PlotStrip, panel_series, parse_panel, strip_height
@@ -305,7 +305,7 @@ class Views:
         return out
 
     def _render(self, i: int) -> list[np.ndarray]:
-        """The views of output frame ``i``: ``(H, W, 3)`` uint8 images, one per view."""
+        """The views of output frame ``i``: ``(H, W, 4)`` uint8 RGBA images (alpha meaningless), one per view."""
         plan, options = self.plan, self.options
         images = []
         if self.view_nodes:
@@ -315,25 +315,27 @@ class Views:
                     grid.is_visible = k == view
                 scene.main_camera_node = node
                 scene.set_pose(node, cam.poses[i])
-                images.append(render_rgb(self.renderer, scene, options.shadows))
+                images.append(render_rgba(self.renderer, scene, options.shadows))
         else:
             for scene in self.scenes:
                 scene.set_pose(scene.camera_node, plan.camera.poses[i])
-                images.append(render_rgb(self.renderer, scene, options.shadows))
+                images.append(render_rgba(self.renderer, scene, options.shadows))
         return images
 
     def finish(self, images: list[np.ndarray], i: int) -> np.ndarray:
         """The output image of frame ``i`` from its rendered views: angle arcs and labels, the
         frame/time text, the views composed with the plot strip (see :meth:`_compose`)."""
+        rgb = [image[..., :3] for image in images]  # drawn into in place
         if self.angles is not None:
-            self.angles.draw(images[0], i)
+            self.angles.draw(rgb[0], i)
         if self.options.overlay:
-            self._overlay(images, i)
+            self._overlay(rgb, i)
         return self._compose(images, i)
 
     def _compose(self, images: list[np.ndarray], i: int) -> np.ndarray:
         """The output frame: views side by side (or in the layout's grid, padded to the
-        output size), the plot strip under them."""
+        output size), the plot strip under them; ``(H, W, C)`` as the views (RGBA: the encoder
+        takes it as it is, no repacking)."""
         rows, cols = self.plan.grid_shape
         if self.view_nodes:
             block = np.vstack([np.hstack(images[r * cols:(r + 1) * cols]) for r in range(rows)])
@@ -342,12 +344,13 @@ class Views:
         parts = [block] if self.strip is None else [block, None]
         height = self.options.height - (0 if self.strip is None else self.strip.image.shape[0])
         if block.shape[:2] != (height, self.options.width):  # panels rounded down: pad with the background
-            pad = np.empty((height, self.options.width, 3), np.uint8)
+            pad = np.empty((height, self.options.width, block.shape[2]), np.uint8)
             pad[...] = np.asarray(block[0, 0])
             pad[:block.shape[0], :block.shape[1]] = block
             parts[0] = pad
         if self.strip is not None:
-            parts[1] = self.strip.frame(i)
+            strip = self.strip.frame(i)
+            parts[1] = strip if block.shape[2] == 3 else np.dstack([strip, np.full(strip.shape[:2], 255, np.uint8)])
         return np.ascontiguousarray(parts[0] if len(parts) == 1 else np.vstack(parts))
 
     def _overlay(self, images: list[np.ndarray], i: int) -> None:
