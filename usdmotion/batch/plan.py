@@ -24,7 +24,7 @@ DEFAULT_PARAMS = {"convert": {"to": "usdc", "mesh": False}, "analyze": {}, "segm
 #: 0.2–0.4 s of work on one core for the 150 kB, 160-frame BVH takes of ``benchmarks/batch.py``), so
 #: the scheduler, the client and the worker's event loop handle tens of tasks, not thousands.
 #: ``0``: one take per task (the operations whose takes take seconds).
-TASK_BYTES = {"convert": 4 << 20, "analyze": 1 << 20, "segment": 1 << 20, "retarget": 0, "render": 0}
+TASK_BYTES = {"convert": 4 << 20, "analyze": 4 << 20, "segment": 1 << 20, "retarget": 0, "render": 0}
 FRAMES_DIR = "frames"
 CATALOGUE = "catalogue.parquet"
 
