@@ -98,7 +98,8 @@ def open_and_play(browser, base: str, take_id: str, play_s: float, by_url: bool 
     (t0, f0), (t1, f1) = log[0], log[-1]
     seconds = (t1 - t0) / 1000
     return {"first_frame_s": (first - t_click) / 1000, "body_s": (body - t_click) / 1000,
-            "first_pixels_s": (first_px - t_click) / 1000, "on_screen_s": on_screen, "body_pixels_s": (body_px - t_click) / 1000, "canvas": size,
+            "first_pixels_s": (first_px - t_click) / 1000, "on_screen_s": on_screen,
+            "body_pixels_s": (body_px - t_click) / 1000, "canvas": size,
             "take_frames_per_s": (f1 - f0) / seconds, "drawn_per_s": (len(log) - 1) / seconds}
 
 
@@ -168,7 +169,8 @@ def main() -> None:
           f"{'pixels s':>10}{'take frames/s':>15}{'drawn/s':>9}")
     for name, r in rows.items():
         shown = f"{r['on_screen_s']:>13.3f}" if r["on_screen_s"] is not None else f"{'-':>13}"
-        print(f"{name:<6}{r['first_frame_s']:>15.3f}{r['first_pixels_s']:>10.3f}{r['first_pixels_s'] / 1.0:>12.2f}{shown}"
+        print(f"{name:<6}{r['first_frame_s']:>15.3f}{r['first_pixels_s']:>10.3f}"
+              f"{r['first_pixels_s'] / 1.0:>12.2f}{shown}"
               f"{r['body_s']:>9.2f}{r['body_pixels_s']:>10.2f}{r['take_frames_per_s']:>15.1f}{r['drawn_per_s']:>9.1f}")
     print(f"{'request (warm)':<16}{'server ms':>10}{'bytes':>12}{'client ms':>11}")
     for name, (server_ms, size, client_ms) in requests.items():

@@ -9,9 +9,9 @@ the HTML parsed (``domInteractive``), main.js fetched, the server had the take's
 response started: it is sent once computed; the server reads the file first), the first
 render and its pixels, when that frame was on the screen (the page's first contentful paint: a
 linked page shows its view alone, and draws nothing in it, until the take's first frame; Chrome
-times a paint when the GPU process presented it), the body's pixels; and the calls into WebGL that blocked the page for more
-than 3 ms before the first pixels (each is a round trip to the GPU process: context creation, the
-first query after it, shader link status, the benchmark's pixel read-back), by kind. Medians over
+times a paint when the GPU process presented it), the body's pixels; and the calls into WebGL that
+blocked the page for more than 3 ms before the first pixels (each is a round trip to the GPU process:
+context creation, the first query after it, shader link status, the benchmark's pixel read-back), by kind. Medians over
 the runs; prints a table and writes ``benchmarks/results/studio_url.json``.
 """
 

@@ -112,7 +112,8 @@ async function openTake(id, fresh) {
   try {
     take = await loadTake(id);
   } catch (e) {
-    const name = id.split('/').slice(1).join('/') || id, line = e.message.includes(name) ? e.message : `${name}: ${e.message}`;
+    const name = id.split('/').slice(1).join('/') || id;
+    const line = e.message.includes(name) ? e.message : `${name}: ${e.message}`;
     if (player.figure) {  // the take shown before stays, with the line under it
       $('view-message').textContent = line;
       $('view-message').className = 'error-text';

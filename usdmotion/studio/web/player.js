@@ -75,7 +75,8 @@ export class Player {
   compileJoints() {
     this.jointsCompiled = true;
     const joints = this.figure.joints;
-    this.renderer.compileAsync(joints, this.camera, this.scene).then(() => { joints.visible = true; this.dirty = true; });
+    this.renderer.compileAsync(joints, this.camera, this.scene)
+      .then(() => { joints.visible = true; this.dirty = true; });
   }
 
   resize() {
