@@ -13,11 +13,13 @@ taken twice: when ``render()`` was called, and when its pixels were there (the G
 compiles and draws after ``render()`` returns; the page reads one pixel back to wait for it, only
 under the benchmark's ``window.studioTimings``); the goal ratio is of the pixels. The skinned body
 (GLB) follows and is timed separately, cold (built) and warm (cached in the output folder).
-The ``url`` row is the first page of a freshly started browser on a take the server has not read;
-its ``on screen`` column is when the first frame was presented (the page's first contentful paint:
-a linked page shows its view alone, and draws nothing in it, until the take's first frame is there;
-Chrome times a paint when the GPU process presented it). Also: how soon a library of ``--library``
-files is listed and filled in.
+The ``url`` row is the first page of a freshly started browser on a take the server has not read
+(it includes the browser's GPU process starting: its first WebGL context waits for it); the ``link``
+row the same in a new tab of that running browser, on another unread take (a link opened in the
+browser a coach already has open). Their ``on screen`` column is when the first frame was presented
+(the page's first contentful paint: a linked page shows its view alone, and draws nothing in it,
+until the take's first frame is there; Chrome times a paint when the GPU process presented it).
+Also: how soon a library of ``--library`` files is listed and filled in.
 Prints a table; writes ``benchmarks/results/studio.json``.
 """
 
@@ -142,11 +144,14 @@ def main() -> None:
     take_id = f"0/{take.name}"
     unread = take.with_name(f"unread_{take.name}")  # opened first by URL: nothing read or cached yet
     unread.write_bytes(take.read_bytes())
+    unread_too = take.with_name(f"unread2_{take.name}")  # the link row's: also not read yet
+    unread_too.write_bytes(take.read_bytes())
     rows = {}
     with running_studio([take.parent], units="asf", out=tmp / "out") as base, sync_playwright() as p:
         browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
         try:
             rows["url"] = open_and_play(browser, base, f"0/{unread.name}", args.play, by_url=True)
+            rows["link"] = open_and_play(browser, base, f"0/{unread_too.name}", args.play, by_url=True)  # a new tab
             rows["cold"] = open_and_play(browser, base, take_id, args.play)  # server reads, FK, builds the body
             rows["warm"] = open_and_play(browser, base, take_id, args.play)  # server caches, GLB from out/cache
             library = library_fill(browser, args.library, tmp)
@@ -160,11 +165,12 @@ def main() -> None:
     print(f"load average (1 min): {os.getloadavg()[0]:.1f}")
     print(f"studio: {args.frames}-frame, 31-joint take at 120 fps; headless Chromium {platform.machine()}, "
           "SwiftShader WebGL, canvas " + "x".join(map(str, rows["cold"]["canvas"])))
-    print("url: fresh page on the take's URL, timed from navigation (reads the file); cold: click in the "
-          "library (file read while listing), body built; warm: click again, body from the cache")
+    print("url: fresh page on the take's URL, timed from navigation (reads the file); link: the same in a new tab "
+          "of the running browser (another unread take); cold: click in the library (file read while listing), "
+          "body built; warm: click again, body from the cache")
     print("first frame / body: when render() was called; pixels: when the GPU process had drawn that frame "
           "(one pixel read back)")
-    print("on screen (url only): the page's first contentful paint, i.e. the take's first frame presented")
+    print("on screen (url, link): the page's first contentful paint, i.e. the take's first frame presented")
     print(f"{'open':<6}{'first frame s':>15}{'pixels s':>10}{'goal ratio':>12}{'on screen s':>13}{'body s':>9}"
           f"{'pixels s':>10}{'take frames/s':>15}{'drawn/s':>9}")
     for name, r in rows.items():
