@@ -264,9 +264,10 @@ def test_url_reopens_the_same_frame_and_camera(studio, browser, page):
         assert [asked.count(what) for what in ("skeleton", "positions", "glb")] == [1, 1, 1], asked
         assert asked.index("positions") < asked.index("takes") and asked.index("positions") < asked.index("glb")
         assert other.evaluate("window.studio.player.renderer.getContext() === window.early.gl")
-        # the tool panels' modules (and uPlot) are fetched only once the take's first frame is drawn
+        # the tool panels' modules (and uPlot) and the library's list (hidden until then) are fetched only
+        # once the take's first frame is drawn
         assert other.evaluate("""() => ['app/segment.js', 'app/edits.js', 'app/retarget.js', 'app/video.js',
-            'vendor/uplot/dist/uPlot.esm.js'].map(path => performance.getEntriesByName(new URL(path, location.origin).href)[0])
+            'vendor/uplot/dist/uPlot.esm.js', 'api/takes'].map(path => performance.getEntriesByName(new URL(path, location.origin).href)[0])
             .every(entry => entry && entry.startTime > window.studio.player.firstDrawnAt)""")
         assert other.evaluate("window.studio.player.figure.body !== null")
     finally:

@@ -342,11 +342,11 @@ async function start() {
   // them, a warm-up would only draw one frame more (the compare ghost's are compiled once it is drawn)
   if (!state.take) player.warmUp();
   const opening = state.take ? openTake(state.take, false) : null;
-  await library.load();  // the list of takes, at once
-  if (opening) {  // a linked take is drawn before the library is read and the panels are loaded
-    await Promise.race([shown, opening]);
+  if (opening) {  // a linked take is drawn before the library is listed (hidden until then: index.html)
+    await Promise.race([shown, opening]);  // and read, and before the panels are loaded
     await new Promise(resolve => requestAnimationFrame(() => setTimeout(resolve)));  // after the draw
   }
+  await library.load();  // the list of takes, at once
   const panels = loadPanels();
   await library.fill();
   fillTakeLists();
