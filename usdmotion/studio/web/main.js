@@ -63,9 +63,12 @@ const player = new Player($('canvas'), frame => {
 });
 // a linked page shows its view alone until the take's first frame is on the screen (index.html): the
 // canvas is the only content, so the first contentful paint is that frame's
-player.onFirstFrame = () => (player.onFirstFrame = null) || new PerformanceObserver((list, observer) => {
-  if (list.getEntriesByName('first-contentful-paint').length) { observer.disconnect(); window.early.reveal(); }
-}).observe({type: 'paint', buffered: true});
+player.onFirstFrame = () => {
+  player.onFirstFrame = null;
+  new PerformanceObserver((list, observer) => {
+    if (list.getEntriesByName('first-contentful-paint').length) { observer.disconnect(); window.early.reveal(); }
+  }).observe({type: 'paint', buffered: true});
+};
 player.holdEmpty = !!state.take;  // and draws nothing before its take: the first frame drawn is the take's
 player.onStop = () => { $('play').textContent = '▶'; writeUrl(); };
 player.onOrbit = () => { player.cameraMode = 'orbit'; $('camera').value = 'orbit'; };
