@@ -75,6 +75,9 @@ class ContactTerms:
         weights: ``(F, C)`` weight per frame (:data:`CONTACT_WEIGHT` during contact, ramped
             down to :data:`SWING_SHARE` of it between contacts, see :func:`ramp`).
         targets: ``(F, C, 3)`` fixed point of each contact interval, blended between them.
+        planted: ``(F, C, 3)`` the fixed point of each contact interval on its frames (the
+            root-scaled source elsewhere).
+        level: ``(C,)`` planted level of each contact joint on the up axis (target units).
         floor: floor height on the target's up axis (target units).
         up: index of the up axis.
         leg_ratio: ``k``, target / source leg length.
@@ -89,6 +92,8 @@ class ContactTerms:
     joints: np.ndarray
     weights: np.ndarray
     targets: np.ndarray
+    planted: np.ndarray
+    level: np.ndarray
     floor: float
     up: int
     leg_ratio: float
@@ -187,7 +192,8 @@ def contact_terms(setup, source, contacts: FootContacts, root_scale: str = "off"
                        parts=tuple(contacts.parts[c] for c in keep), contact=np.asarray(contacts.contact)[:, keep],
                        floor=float(floor * rig.meters_per_unit), clearance=k * clearance * rig.meters_per_unit,
                        up=rig.up_axis)
-    return ContactTerms(joints, weights, targets, float(floor), up, float(k), shift, root_shift, restated, dropped)
+    return ContactTerms(joints, weights, targets, planted, level, float(floor), up, float(k), shift, root_shift,
+                        restated, dropped)
 
 
 def leg_chains(parents: np.ndarray, contact_joints: np.ndarray) -> np.ndarray:

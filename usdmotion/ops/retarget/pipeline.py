@@ -39,6 +39,7 @@ from usdmotion.ops.retarget import quality as retarget_quality
 from usdmotion.ops.retarget import report as retarget_report
 from usdmotion.ops.retarget.contact_terms import FLOOR_WEIGHT, ROOT_SCALES, body_share, contact_terms, moved_joints
 from usdmotion.ops.retarget.jointmap import JointMap, resolve_map
+from usdmotion.ops.retarget.leg_ik import legs_of, place_legs
 from usdmotion.ops.retarget.losses import frame_losses
 from usdmotion.ops.retarget.problem import CONTACT_ITERATIONS, CONTACT_WARM_ITERATIONS, Problem
 from usdmotion.ops.retarget.aim import aim_init, identity_quats as _identity
@@ -439,25 +440,8 @@ def _solve(setup: Setup, q0: np.ndarray, terms, rot_terms, method: str, iteratio
     t0 = setup.translations.copy()
     t0[:, setup.anchor] -= centre
     targets = setup.targets[:, setup.mapped] - centre[:, None]
-    problem = _problem(setup, terms, *rot_terms)
-    weights = floor = None
-    if terms is not None:
-        targets = np.concatenate([targets, terms.targets - centre[:, None]], axis=1)
-        mapped_w = problem.weights * body_share(setup, terms.joints)  # the body above the legs rides on the root
-        weights = np.concatenate([np.broadcast_to(mapped_w, (len(q0), len(mapped_w))), terms.weights], axis=1)
-        floor = terms.floor - centre[:, terms.up]
-    if terms is not None:  # warm start: the plain solve, then the contacts move what they must
-        plain = solve(_problem(setup, None, *rot_terms), q0, t0, targets[:, : len(setup.mapped)], method=method,
-                      iterations=CONTACT_WARM_ITERATIONS)
-        solution = solve(problem, plain.q, plain.t, targets, method=method,
-                         iterations=CONTACT_ITERATIONS if iterations is None else iterations,
-                         progress=progress, weights=weights, floor=floor)
-        solution = dataclasses.replace(solution, compile_s=solution.compile_s + plain.compile_s,
-                                       run_s=solution.run_s + plain.run_s,
-                                       iterations=solution.iterations + plain.iterations)
-    else:
-        solution = solve(problem, q0, t0, targets, method=method, iterations=iterations, progress=progress,
-                         weights=weights, floor=floor)
+    problem = _problem(setup, None, *rot_terms)
+    solution = solve(problem, q0, t0, targets, method=method, iterations=iterations, progress=progress)
     q, t = solution.q, solution.t
     t[:, setup.anchor] += centre
     if terms is None and not problem.smoothing and not problem.anchored:
@@ -465,6 +449,13 @@ def _solve(setup: Setup, q0: np.ndarray, terms, rot_terms, method: str, iteratio
         args = (setup.rig.parents, setup.mapped, setup.targets, setup.weights)
         worse = frame_losses(t, q, *args) > frame_losses(setup.translations, q0, *args)
         q[worse], t[worse] = q0[worse], setup.translations[worse]
+    if terms is not None:  # the contact solve: the legs meet the contacts analytically
+        began = time.perf_counter()
+        q, t, _ = place_legs(q, t, setup.rig.parents, setup.anchor, legs_of(
+            setup.rig.parents, terms.joints, terms.target_contacts.parts, setup.offsets, setup.top),
+            terms.planted, terms.target_contacts.contact, terms.level, terms.up, terms.target_contacts.fps,
+            terms.floor)
+        solution = dataclasses.replace(solution, run_s=solution.run_s + time.perf_counter() - began)
     q, t = unmapped_rules(setup, q, t, terms.floor if terms is not None else floor_height)
     return continuous_hemisphere(q), t, solution
 
