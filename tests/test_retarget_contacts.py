@@ -187,9 +187,6 @@ def test_longer_legs_keep_the_stance_feet_fixed_and_above_the_floor(long_legs):
     assert rep["quality"]["floor"]["frames_below"] == 0
 
 
-@pytest.mark.xfail(strict=True, reason="issue 17 Must-show 3: stance feet fixed to 1 mm is not met yet (worst "
-                                       "4.0 mm on this walk, 2026-11-25: the ankle at push-off, its leg stretched, "
-                                       "while the source's heel rises up to 4.8 cm within the detected contact)")
 def test_stance_feet_fixed_to_1mm(long_legs):
     source, contacts, result = long_legs
     motion = result.motion

@@ -32,7 +32,6 @@ import numpy as np
 from usdmotion.kinematics import fk_arrays
 from usdmotion.rotations import quat_conjugate, quat_mul, quat_normalize, quat_rotate
 
-DROP_SHARE = float(__import__("os").environ.get("CIK_DROP", "1"))
 #: Seconds over which the root's drop is smoothed (see :func:`root_drop`).
 DROP_WINDOW_S = 0.25
 #: A leg is never stretched beyond this share of its length (a fully straight knee has no
@@ -240,7 +239,7 @@ def place_legs(q: np.ndarray, t: np.ndarray, parents: np.ndarray, anchor: int, l
     flat = np.stack([contact[:, leg.ankle_c] & (contact[:, leg.toe_c] if leg.toe >= 0 else True) for leg in legs], 1)
     hips = world_p[:, [leg.hip for leg in legs]]
     points = planted[:, [leg.ankle_c for leg in legs]]
-    drop = root_drop(np.where(flat[..., None], hips, points), reach, points, up, fps) * DROP_SHARE
+    drop = root_drop(np.where(flat[..., None], hips, points), reach, points, up, fps)
     if drop.max() > 0:
         shift = np.zeros((q.shape[0], 3))
         shift[:, up] = -drop
@@ -250,13 +249,14 @@ def place_legs(q: np.ndarray, t: np.ndarray, parents: np.ndarray, anchor: int, l
         world_p = world_p + shift[:, None]
     targets = [foot_targets(world_p, leg, planted, contact, level, up, r) for leg, r in zip(legs, reach)]
     for leg, (ankle_target, toe_target, _) in zip(legs, targets):
-        q = _two_bone(q, world_q, world_p, parents, leg, ankle_target, toe_target, up)
+        q = _two_bone(q, world_q, world_p, parents, leg, ankle_target, toe_target, up,
+                      level[leg.toe_c] if leg.toe >= 0 else None)
     return _toes_above_floor(q, t, parents, legs, floor, up), t, drop
 
 
 def _toes_above_floor(q, t, parents, legs: list[Leg], floor: float, up: int) -> np.ndarray:
-    """``q`` with each toe joint turned (in the vertical plane of the bone) so that no joint
-    below it is under ``floor`` (the toe itself is above it: its targets are)."""
+    """``q`` with each toe joint turned so that no joint below it is under ``floor``: such a
+    joint is put on the floor along the foot's heading from the toe."""
     world_q, world_p = fk_arrays(q, t, parents)
     for leg in legs:
         if leg.toe < 0:
@@ -267,8 +267,11 @@ def _toes_above_floor(q, t, parents, legs: list[Leg], floor: float, up: int) -> 
             low = (world_p[:, d, up] < floor) & (length > 0)
             if not low.any():
                 continue
-            flat = bone.copy()
+            heading = world_p[:, leg.toe] - world_p[:, leg.ankle]
+            heading[:, up] = 0.0
+            flat = bone.copy()  # the bone's own heading, and a little of the foot's where it points down
             flat[:, up] = 0.0
+            flat = flat + HEADING_SHARE * length[:, None] * _unit(heading)
             sin = np.clip((floor - world_p[:, leg.toe, up]) / np.maximum(length, 1e-300), -1.0, 1.0)
             lifted = _unit(flat) * np.sqrt(1.0 - sin ** 2)[:, None] * length[:, None]
             lifted[:, up] = sin * length
@@ -279,7 +282,7 @@ def _toes_above_floor(q, t, parents, legs: list[Leg], floor: float, up: int) -> 
     return q
 
 
-def _two_bone(q, world_q, world_p, parents, leg: Leg, ankle_target, toe_target, up):
+def _two_bone(q, world_q, world_p, parents, leg: Leg, ankle_target, toe_target, up, toe_level):
     """Local rotations of hip, knee and ankle of one leg placed on its targets (see :func:`place_legs`)."""
     hip, knee, ankle = world_p[:, leg.hip], world_p[:, leg.knee], world_p[:, leg.ankle]
     a = np.linalg.norm(knee - hip, axis=-1, keepdims=True)
@@ -303,8 +306,16 @@ def _two_bone(q, world_q, world_p, parents, leg: Leg, ankle_target, toe_target, 
     turn_knee = quat_mul(_swing(quat_rotate(turn_hip, ankle - knee), new_ankle - new_knee), turn_hip)
     w_knee = quat_mul(turn_knee, world_q[:, leg.knee])
     w_ankle = world_q[:, leg.ankle]  # the foot keeps its solved world rotation ...
-    if toe_target is not None:  # ... turned to aim at the toe's target
-        w_ankle = quat_mul(_swing(world_p[:, leg.toe] - ankle, toe_target - new_ankle), w_ankle)
+    if toe_target is not None:  # ... turned to aim at the toe's target, the toe not below its level
+        foot = world_p[:, leg.toe] - ankle
+        length = np.linalg.norm(foot, axis=-1, keepdims=True)
+        aim = _unit(toe_target - new_ankle) * length
+        rise = np.maximum(aim[:, up], np.maximum(toe_level - new_ankle[:, up], -length[:, 0]))
+        flat = aim.copy()
+        flat[:, up] = 0.0
+        aim = _unit(flat) * np.sqrt(np.maximum(length ** 2 - rise[:, None] ** 2, 0.0))
+        aim[:, up] = rise
+        w_ankle = quat_mul(_swing(foot, aim), w_ankle)
     parent = parents[leg.hip]
     w_parent = world_q[:, parent] if parent >= 0 else np.broadcast_to([1.0, 0, 0, 0], w_hip.shape)
     q[:, leg.hip] = quat_mul(quat_conjugate(w_parent), w_hip)
