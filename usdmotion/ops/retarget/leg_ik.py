@@ -12,10 +12,12 @@ frames at once in float64 NumPy (no per-frame loop):
    blended out by the contact's other end (so the ankle never jumps); between contacts
    the joint follows the solve plus an offset blended linearly from one contact to the next
    (footskate clean-up, Kovar et al. 2002). No target lies below the joint's planted level.
-2. **The root drops where a leg cannot reach** (:func:`root_drop`): by the least amount
-   that brings every ankle target within the leg's length, smoothed over
-   :data:`DROP_WINDOW_S` (a running maximum, then a moving mean of it: never less than
-   needed, never a step).
+2. **Reach**: where a foot planted flat (ankle and toe down) lies beyond the leg's length
+   from the solved hip, the root comes down (:func:`root_drop`) by the least amount that
+   reaches it, smoothed over :data:`DROP_WINDOW_S` (a running maximum, then a moving mean
+   of it: never less than needed, never a step). A held ankle target still out of reach
+   from the lowered hip is raised (only the ankle down: straight up; with the toe down:
+   by turning the foot about the toe's point — the heel lifts).
 3. **Two-bone IK** (:func:`place_legs`): the knee stays in the plane of the solved leg (its
    bend direction, plus a little of the foot's heading where the leg is straight), the hip
    and knee turn by the shortest rotations that put knee and ankle where the triangle
@@ -33,7 +35,7 @@ from usdmotion.kinematics import fk_arrays
 from usdmotion.rotations import quat_conjugate, quat_mul, quat_normalize, quat_rotate
 
 #: Seconds over which the root's drop is smoothed (see :func:`root_drop`).
-DROP_WINDOW_S = 0.25
+DROP_WINDOW_S = 0.15
 #: A leg is never stretched beyond this share of its length (a fully straight knee has no
 #: bend direction to keep).
 REACH = 0.9995
@@ -109,10 +111,10 @@ def foot_targets(world_p: np.ndarray, leg: Leg, planted: np.ndarray, contact: np
     module docstring); ``held``: the frames on which the ankle target is a contact's.
 
     Where a held ankle target lies beyond the leg's reach from the solved hip, it is raised:
-    during an ankle contact straight up (the horizontal position holds; with the toe planted
-    too, the toe then lies ``L − √(L² − rise²)`` short of its point, under a mm for a rise of
-    a cm on a 10 cm foot), during a toe-only contact by turning the foot about the toe's
-    point (the heel rises further).
+    with only the ankle planted straight up (the horizontal position holds), with the toe
+    planted too by turning the foot about the toe's point (the heel lifts: the ankle then
+    moves horizontally by about ``rise² / (2 L)``, 0.3 mm for a rise of 1 cm on a 15 cm
+    foot), during a toe-only contact likewise (the heel rises further).
 
     Args:
         world_p: ``(F, J, 3)`` world positions of the solve.
@@ -125,13 +127,15 @@ def foot_targets(world_p: np.ndarray, leg: Leg, planted: np.ndarray, contact: np
     ankle, hip, limit = world_p[:, leg.ankle], world_p[:, leg.hip], REACH * reach
     on_a = contact[:, leg.ankle_c]
     on_t = contact[:, leg.toe_c] if leg.toe >= 0 else np.zeros_like(on_a)
-    lifted = _lift_to_reach(planted[:, leg.ankle_c], hip, limit, up)
+    point = planted[:, leg.ankle_c]
+    lifted = _lift_to_reach(point, hip, limit, up)
+    if leg.toe >= 0:  # a flat foot turns about its toe: the ankle moves by rise²/(2 L) horizontally
+        lifted = np.where(on_t[:, None], _turn_to_reach(point, planted[:, leg.toe_c], hip, limit), lifted)
     desired = np.where(on_a[:, None], lifted, ankle)
     held = on_a.copy()
     toe_target = None
     if leg.toe >= 0:
         toe = world_p[:, leg.toe]
-        on_t = contact[:, leg.toe_c]
         foot = ankle - toe  # (F, 3) the solved foot, toe → ankle; its length is the rig's
         # toe-only frames: the foot pivots about the toe's point; its direction is the solve's
         # plus a correction known on frames with both contacts (the flat foot's) and 0 at a toe
@@ -234,7 +238,7 @@ def place_legs(q: np.ndarray, t: np.ndarray, parents: np.ndarray, anchor: int, l
         return q, t, np.zeros(q.shape[0])
     reach = np.array([np.linalg.norm(world_p[:, leg.knee] - world_p[:, leg.hip], axis=-1).mean()
                       + np.linalg.norm(world_p[:, leg.ankle] - world_p[:, leg.knee], axis=-1).mean() for leg in legs])
-    # the root comes down where a foot planted flat (ankle and toe) is out of the leg's reach;
+    # the root comes down where a foot planted flat (ankle and toe) lies out of the leg's reach;
     # then the targets are found from the lowered hips (heels lifted, feet turned where needed)
     flat = np.stack([contact[:, leg.ankle_c] & (contact[:, leg.toe_c] if leg.toe >= 0 else True) for leg in legs], 1)
     hips = world_p[:, [leg.hip for leg in legs]]
