@@ -259,29 +259,29 @@ def place_legs(q: np.ndarray, t: np.ndarray, parents: np.ndarray, anchor: int, l
 
 
 def _toes_above_floor(q, t, parents, legs: list[Leg], floor: float, up: int) -> np.ndarray:
-    """``q`` with each toe joint turned so that no joint below it is under ``floor``: such a
-    joint is put on the floor along the foot's heading from the toe."""
+    """``q`` with each toe joint (an ankle without one) turned so that no joint below it is
+    under ``floor``: such a joint is put on the floor, turned about the toe in the vertical
+    plane of its bone."""
     world_q, world_p = fk_arrays(q, t, parents)
     for leg in legs:
-        if leg.toe < 0:
-            continue
-        for d in (j for j in range(len(parents)) if _below(parents, j, leg.toe)):
-            bone = world_p[:, d] - world_p[:, leg.toe]
+        pivot = leg.toe if leg.toe >= 0 else leg.ankle  # without a toe: the foot's own End Site
+        for d in (j for j in range(len(parents)) if _below(parents, j, pivot)):
+            bone = world_p[:, d] - world_p[:, pivot]
             length = np.linalg.norm(bone, axis=-1)
             low = (world_p[:, d, up] < floor) & (length > 0)
             if not low.any():
                 continue
-            heading = world_p[:, leg.toe] - world_p[:, leg.ankle]
+            heading = world_p[:, leg.toe] - world_p[:, leg.ankle] if leg.toe >= 0 else bone.copy()
             heading[:, up] = 0.0
             flat = bone.copy()  # the bone's own heading, and a little of the foot's where it points down
             flat[:, up] = 0.0
             flat = flat + HEADING_SHARE * length[:, None] * _unit(heading)
-            sin = np.clip((floor - world_p[:, leg.toe, up]) / np.maximum(length, 1e-300), -1.0, 1.0)
+            sin = np.clip((floor - world_p[:, pivot, up]) / np.maximum(length, 1e-300), -1.0, 1.0)
             lifted = _unit(flat) * np.sqrt(1.0 - sin ** 2)[:, None] * length[:, None]
             lifted[:, up] = sin * length
             turn = np.where(low[:, None], _swing(bone, lifted), [1.0, 0.0, 0.0, 0.0])
-            w_toe = quat_mul(turn, world_q[:, leg.toe])
-            q[:, leg.toe] = quat_mul(quat_conjugate(world_q[:, parents[leg.toe]]), w_toe)
+            w_pivot = quat_mul(turn, world_q[:, pivot])
+            q[:, pivot] = quat_mul(quat_conjugate(world_q[:, parents[pivot]]), w_pivot)
             world_q, world_p = fk_arrays(q, t, parents)
     return q
 
