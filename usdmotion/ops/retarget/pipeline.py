@@ -42,7 +42,7 @@ from usdmotion.ops.retarget.jointmap import JointMap, resolve_map
 from usdmotion.ops.retarget.leg_ik import legs_of, place_legs
 from usdmotion.ops.retarget.losses import frame_losses
 from usdmotion.ops.retarget.problem import Problem
-from usdmotion.ops.retarget.aim import aim_init, identity_quats as _identity
+from usdmotion.ops.retarget.aim import aim_init, aim_single_points, identity_quats as _identity
 from usdmotion.ops.retarget.rotation_terms import smooth_scale
 from usdmotion.ops.retarget.solve import solve
 from usdmotion.ops.retarget.unmapped import continuous_hemisphere, unmapped_rules
@@ -439,6 +439,8 @@ def _solve(setup: Setup, q0: np.ndarray, terms, rot_terms, method: str, iteratio
     solution = solve(problem, q0, t0, targets, method=method, iterations=iterations, progress=progress)
     q, t = solution.q, solution.t
     t[:, setup.anchor] += centre
+    if setup.mode == "target" and method == "lm":  # bones moving one point: onto it (see aim_single_points)
+        q = aim_single_points(setup, q, t)
     if terms is None and not problem.smoothing and not problem.anchored:
         # keep, per frame, the better of the initial guess and the float32 solution in float64
         args = (setup.rig.parents, setup.mapped, setup.targets, setup.weights)
