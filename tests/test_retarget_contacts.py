@@ -391,3 +391,19 @@ def test_root_drop_covers_the_need_and_never_steps():
     half = int(round(DROP_WINDOW_S * fps / 2))
     assert np.abs(np.diff(drop)).max() <= need.max() / (2 * half + 1) + 1e-9  # a ramp, never a step
     assert not root_drop(hips, np.array([88.0]), np.zeros((n, 1, 3)) + (0, 10, 0), 1, fps).any()  # all reachable
+
+
+def test_floor_includes_the_toe_tips_that_go_below_it():
+    from usdmotion.ops.retarget.contact_terms import tips_floor
+
+    parents = np.array([-1, 0, 1, 2, 3])  # hips, knee, ankle, toe, toe tip
+    n = 200
+    targets = np.zeros((n, 5, 3))
+    targets[:, 4, 1] = np.linspace(-3.0, 5.0, n)  # the tip's heights; its 2nd percentile ≈ -2.84
+    rig = type("Rig", (), {"parents": parents})()
+    setup = type("Setup", (), {"rig": rig, "targets": targets, "mapped": np.arange(5)})()
+    expected = np.percentile(targets[:, 4, 1], 2.0)
+    assert tips_floor(setup, np.array([2, 3]), 0.0, 1.0, 1) == pytest.approx(expected)
+    assert tips_floor(setup, np.array([2, 3]), 1.0, 2.0, 1) == pytest.approx(1.0 + 2.0 * (expected - 1.0))
+    setup.mapped = np.arange(4)  # the tip not mapped: the contacts' floor
+    assert tips_floor(setup, np.array([3]), 0.5, 1.0, 1) == 0.5

@@ -48,7 +48,8 @@ class ContactTerms:
         planted: ``(F, C, 3)`` the fixed point of each contact interval on its frames (the
             root-scaled source elsewhere).
         level: ``(C,)`` planted level of each contact joint on the up axis (target units).
-        floor: floor height on the target's up axis (target units).
+        floor: floor height on the target's up axis (target units): the contacts' floor, or
+            lower where the source's toe tips go lower (:func:`tips_floor`).
         up: index of the up axis.
         leg_ratio: ``k``, target / source leg length.
         shift: ``(F, J, 3)`` translation added to each target joint's source position (root
@@ -145,11 +146,12 @@ def contact_terms(setup, source, contacts: FootContacts, root_scale: str = "off"
             planted[a:b, c] = scaled[a:b, c].mean(axis=0)
     planted[..., up] = np.where(contact, level[None], planted[..., up])
     planted = foot_length_apart(setup, joints, contact, planted, up)
+    lowest = min(floor, tips_floor(setup, joints, floor, k, up))
     restated = replace(contacts, joints=tuple(rig.joint_names[j] for j in joints), indices=joints,
                        parts=tuple(contacts.parts[c] for c in keep), contact=np.asarray(contacts.contact)[:, keep],
-                       floor=float(floor * rig.meters_per_unit), clearance=k * clearance * rig.meters_per_unit,
+                       floor=float(lowest * rig.meters_per_unit), clearance=(level - lowest) * rig.meters_per_unit,
                        up=rig.up_axis)
-    return ContactTerms(joints, planted, level, float(floor), up, float(k), shift, root_shift,
+    return ContactTerms(joints, planted, level, float(lowest), up, float(k), shift, root_shift,
                         restated, dropped)
 
 
@@ -191,6 +193,22 @@ def foot_length_apart(setup, joints: np.ndarray, contact: np.ndarray, planted: n
     return planted
 
 
+
+
+def tips_floor(setup, contact_joints: np.ndarray, floor: float, k: float, up: int, percentile: float = 2.0) -> float:
+    """The floor as the mapped joints below the contact joints (toe tips) see it: the
+    ``percentile`` of their per-frame lowest source height (target units; heights above
+    ``floor`` scaled by ``k`` like the fixed points), or ``floor`` without such joints.
+
+    The contacts' floor is estimated from the heel/ankle/toe joints; a source's toe tips go
+    lower (up to 0.6 units on the CMU walk, 6.5 cm on 86_01), and a floor above them made
+    the result turn every toe up where its tip was "below" it (flips of the toes)."""
+    below = ancestor_matrix(setup.rig.parents)[contact_joints].any(axis=0)
+    tips = np.intersect1d(np.flatnonzero(below), setup.mapped)
+    if tips.size == 0:
+        return floor
+    lowest = np.percentile(setup.targets[:, tips, up].min(axis=1), percentile)
+    return float(floor + k * (lowest - floor))
 
 
 def leg_joints(setup, contact_joints: np.ndarray) -> np.ndarray:
