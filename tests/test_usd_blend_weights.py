@@ -120,3 +120,34 @@ def test_an_operation_that_cannot_map_its_frames_says_the_weights_are_left_out(s
     with pytest.raises(ValueError, match="blend_shape_weights must have shape"):
         type(motion)(**{**{f: getattr(motion, f) for f in motion.__dataclass_fields__},
                         "blend_shape_weights": np.zeros((3, 2))})
+
+
+def test_render_draws_the_stage_body_with_its_animated_blend_shapes_as_usd_core_bakes_it(source):
+    """The rendered stage body's points (``usdmotion.render.views.Actor``, render space: metres, Y up)
+    equal usd-core's bake, which applies the animated blend shapes before the skinning."""
+    from usdmotion.render.space import to_render_space
+    from usdmotion.render.views import Actor
+
+    motion = read_motion(source)
+    actor = Actor(motion, np.arange(FRAMES), "body", 96, ghost=False)
+    got = actor.skin(np.arange(FRAMES)).positions
+    expected = to_render_space(usd_core_baked_world(source, range(FRAMES))["Body"], motion.meters_per_unit,
+                               motion.up_axis)
+    height = float(np.ptp(expected.reshape(-1, 3), axis=0).max())
+    assert np.abs(got - expected).max() <= POSITION_TOL * height
+    unshaped = Actor(motion, np.arange(FRAMES), "body", 96, ghost=False)
+    unshaped.shapes = None  # the same body drawn without its blend shapes: visibly off at the last frame
+    assert np.abs(unshaped.skin(np.arange(FRAMES)).positions[-1] - expected[-1]).max() > 100 * POSITION_TOL * height
+
+
+def test_render_says_when_the_blend_shape_weights_are_gone(source):
+    from usdmotion.render.views import Actor
+
+    motion = read_motion(source)
+    with pytest.warns(UserWarning, match="left out"):
+        doubled = motion.with_frames(np.concatenate([motion.rotations] * 2),
+                                     np.concatenate([motion.root_translation] * 2))
+    with pytest.warns(UserWarning, match="Body: the blend shape weights are not carried .* drawn without its "
+                                         "blend shapes"):
+        actor = Actor(doubled, np.arange(2 * FRAMES), "body", 96, ghost=False)
+    assert actor.shapes is None

@@ -453,18 +453,18 @@ def lbs(vertices: np.ndarray, weights: np.ndarray, matrices: np.ndarray,
     """Linear blend skinning of all frames at once.
 
     Args:
-        vertices: ``(V, 3)`` rest positions.
+        vertices: ``(V, 3)`` rest positions, or ``(F, V, 3)``: one set per frame (blend shapes applied).
         weights: ``(V, J)`` dense weights (:meth:`Body.weight_matrix`).
         matrices: ``(F, J, 3, 4)`` skinning matrices (:func:`skinning_matrices`).
         normals: optional ``(V, 3)`` rest normals, skinned by the blended linear part.
 
-    Returns:
-        ``(F, V, 3)`` positions, or ``(positions, normals)`` when normals are given.
+    Returns: ``(F, V, 3)`` positions, or ``(positions, normals)`` when normals are given.
     """
     n_frames, n_joints = matrices.shape[:2]
     per_joint = np.moveaxis(matrices.reshape(n_frames, n_joints, 12), 1, 0).reshape(n_joints, -1)
-    blended = (weights @ per_joint).reshape(len(vertices), n_frames, 3, 4)  # one BLAS call
-    positions = np.einsum("vfij,vj->fvi", blended[..., :3], vertices) + np.moveaxis(blended[..., 3], 1, 0)
+    blended = (weights @ per_joint).reshape(len(weights), n_frames, 3, 4)  # one BLAS call
+    rest = "vj" if vertices.ndim == 2 else "fvj"  # (F, V, 3): per-frame rest points
+    positions = np.einsum(f"vfij,{rest}->fvi", blended[..., :3], vertices) + np.moveaxis(blended[..., 3], 1, 0)
     if normals is None:
         return positions
     skinned = np.einsum("vfij,vj->fvi", blended[..., :3], normals)

@@ -20,11 +20,13 @@ DEFAULT_READ_OPTIONS = {"units": None, "up_axis": None, "root_offset": "auto", "
 #: Per-operation parameters a job starts from.
 DEFAULT_PARAMS = {"convert": {"to": "usdc", "mesh": False}, "analyze": {}, "segment": {"export_clips": False},
                   "retarget": {"to": "usdc"}, "render": {"size": [640, 360]}}
-#: Source bytes one Dask task should hold per operation: several short takes share a task (about
-#: 0.2–0.4 s of work on one core for the 150 kB, 160-frame BVH takes of ``benchmarks/batch.py``), so
-#: the scheduler, the client and the worker's event loop handle tens of tasks, not thousands.
+#: Source bytes one Dask task should hold per operation: several short takes share a task (4 MB:
+#: ~27 of the 150 kB, 160-frame BVH takes of ``benchmarks/batch.py``, about 0.4 s of work on one
+#: core for ``convert``, 1.1 s for ``analyze``), so the scheduler, the client and the worker's
+#: event loop handle tens of tasks, not thousands: a task costs ~7 ms of CPU across the processes
+#: (measured under load 3), as much as half a convert take.
 #: ``0``: one take per task (the operations whose takes take seconds).
-TASK_BYTES = {"convert": 4 << 20, "analyze": 1 << 20, "segment": 1 << 20, "retarget": 0, "render": 0}
+TASK_BYTES = {"convert": 4 << 20, "analyze": 4 << 20, "segment": 1 << 20, "retarget": 0, "render": 0}
 FRAMES_DIR = "frames"
 CATALOGUE = "catalogue.parquet"
 

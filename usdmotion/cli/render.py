@@ -86,8 +86,9 @@ def render(
         result = render_motion(motion, output, options, other, progress=update)
     t = result.timings
     typer.echo(f"wrote {output}: {result.frames} frames {width}x{height} in {result.seconds:.1f} s "
-               f"({result.fps:.1f} frames/s; body {t.get('build', 0):.1f} s, skinning {t.get('skin', 0):.1f} s, "
-               f"rendering {t.get('render', 0):.1f} s, encoding {t.get('encode', 0):.1f} s in parallel)")
+               f"({result.fps:.1f} frames/s; body {t.get('build', 0):.1f} s, rendering {t.get('render', 0):.1f} s; "
+               f"in parallel: skinning {t.get('skin', 0):.1f} s, overlays {t.get('overlay', 0):.1f} s, "
+               f"encoding {t.get('encode', 0):.1f} s)")
 
 
 def _size(text: str) -> tuple[int, int]:

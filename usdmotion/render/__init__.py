@@ -4,7 +4,7 @@
 figure or both, with a ground grid, trajectory traces, a frame/time overlay, and an
 optional second motion beside it or overlaid as a translucent ghost. Frames stream
 through a bounded queue into a writer thread (encoding overlaps rendering); skinning
-runs in chunks of :data:`CHUNK` frames, so memory stays flat however long the motion.
+runs in chunks of :data:`usdmotion.render.views.CHUNK` frames, so memory stays flat however long the motion.
 See ``docs/render.md``.
 """
 
@@ -25,11 +25,11 @@ from usdmotion.render.angles import parse_angle, sidecar_path, write_sidecar
 from usdmotion.render.camera import check_camera, is_usd_camera, preset_track, usd_camera_track
 from usdmotion.render.compare import align_takes
 from usdmotion.render.output import WriterThread, check_output, open_writer
+from usdmotion.render.overlay import warm_up_text
 from usdmotion.render.panel import parse_panel, strip_height
 from usdmotion.render.scene import to_render_space
 from usdmotion.skin import body_size
 
-CHUNK = 32
 STYLES = ("body", "stick", "both")
 COMPARE_MODES = ("ghost", "side")
 
@@ -63,6 +63,7 @@ class RenderOptions:
     panel: str | None = None
     layout: str | None = None
     contact_shadow: bool = True
+    lod: bool = True  # fewer body triangles when the body is drawn small (usdmotion.render.lod); False: all
 
 
 @dataclass(frozen=True)
@@ -248,17 +249,25 @@ def render_motion(motion: Motion, output: str | Path, options: RenderOptions = R
     from usdmotion.render.views import Views  # GL from here on
 
     started = time.perf_counter()
-    views = Views(motion, other, plan, options)
-    timings = {"build": time.perf_counter() - started}
-    writer = WriterThread(open_writer(output, options.width, options.height, plan.fps, options.quality))
+
+    def open_output():  # on the writer thread, while the body is built
+        warm_up_text(plan.panel[1])
+        return open_writer(output, options.width, options.height, plan.fps, options.quality)
+
+    writer = WriterThread(open_output)
     committed = False
     try:
-        views.run(lambda image, index: writer.put(image, index), progress, timings)
-        committed = True
+        views = Views(motion, other, plan, options)
+        timings = {"build": time.perf_counter() - started}
+        try:
+            views.run(lambda images, index: writer.put(images, index, views.finish), progress, timings)
+            committed = True
+        finally:
+            views.close()
     finally:
-        views.close()
         writer.close(commit=committed)
     timings["encode"] = writer.busy
+    timings["overlay"] = writer.finishing
     if views.angles is not None:
         write_sidecar(sidecar_path(output), plan, views.angles)
     return RenderResult(len(plan.frames), time.perf_counter() - started, timings)

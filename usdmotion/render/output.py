@@ -91,7 +91,8 @@ class VideoWriter:
         self.av = av
 
     def write(self, image: np.ndarray, index: int) -> None:
-        frame = self.av.VideoFrame.from_ndarray(image, format="rgb24")
+        """Encode ``image``: ``(H, W, 3)`` RGB or ``(H, W, 4)`` RGBA (alpha ignored) uint8."""
+        frame = self.av.VideoFrame.from_ndarray(image, format="rgba" if image.shape[2] == 4 else "rgb24")
         self.container.mux(self.stream.encode(frame))
 
     def commit(self) -> None:
@@ -122,6 +123,7 @@ class ImageSequenceWriter:
         import OpenImageIO as oiio
 
         name = frame_name(self.name, index)
+        image = np.ascontiguousarray(image[..., :3])  # RGBA frames: without their alpha
         if self.ext == ".exr":
             pixels = (image.astype(np.float32) / 255.0) ** DISPLAY_GAMMA
             spec = oiio.ImageSpec(image.shape[1], image.shape[0], 3, "half")
@@ -166,41 +168,62 @@ def open_writer(path: Path, width: int, height: int, fps: float, quality: int = 
 
 
 class WriterThread:
-    """Encode/write frames on a background thread while the caller renders the next ones.
+    """Finish, encode and write frames on a background thread while the caller renders the next ones.
 
-    ``put`` blocks when ``depth`` frames are waiting (memory stays flat); an error in the
-    writer is re-raised in the caller at the next ``put`` or at ``close``.
+    ``writer`` is a frame writer, or a function that opens one: it is then opened on the thread,
+    so importing and starting the encoder overlap the caller's work (building the body) instead of
+    delaying the first frame. ``put(payload, index, finish)`` queues a frame; ``finish(payload,
+    index)`` (optional), run on the thread before the write, returns the ``(H, W, 3)`` uint8 image
+    (the overlays and the composition of the views: the rendering thread goes on to the next frame
+    meanwhile). ``put`` blocks when ``depth`` frames are waiting (memory stays flat); an error in
+    the thread (opening, finishing or writing) is re-raised in the caller at the next ``put`` or at
+    ``close``.
     """
 
     def __init__(self, writer, depth: int = 8):
-        self.writer = writer
+        self.writer = writer if hasattr(writer, "write") else None
+        self._open = None if self.writer is not None else writer
         self.queue: queue.Queue = queue.Queue(maxsize=depth)
         self.error: BaseException | None = None
         self.busy = 0.0  # seconds spent writing/encoding
+        self.finishing = 0.0  # seconds spent in ``finish``
         self.thread = threading.Thread(target=self._run, name="usdmotion-writer", daemon=True)
         self.thread.start()
 
     def _run(self) -> None:
+        if self._open is not None:
+            try:
+                self.writer = self._open()
+            except BaseException as exc:  # re-raised in the rendering thread
+                self.error = exc
         while True:
             item = self.queue.get()
             if item is None:
                 return
             if self.error is None:
                 try:
+                    payload, index, finish = item
                     started = time.perf_counter()
-                    self.writer.write(*item)
-                    self.busy += time.perf_counter() - started
+                    image = payload if finish is None else finish(payload, index)
+                    done = time.perf_counter()
+                    self.writer.write(image, index)
+                    self.finishing += done - started
+                    self.busy += time.perf_counter() - done
                 except BaseException as exc:  # re-raised in the rendering thread
                     self.error = exc
 
-    def put(self, image: np.ndarray, index: int) -> None:
+    def put(self, payload, index: int, finish=None) -> None:
         if self.error is not None:
             raise self.error
-        self.queue.put((image, index))
+        self.queue.put((payload, index, finish))
 
     def close(self, commit: bool) -> None:
         self.queue.put(None)
         self.thread.join()
+        if self.writer is None:  # it could not be opened
+            if commit and self.error is not None:
+                raise self.error
+            return
         if commit and self.error is None:
             try:
                 started = time.perf_counter()

@@ -17,6 +17,11 @@ def _font(size: int):
         return ImageFont.load_default()
 
 
+def warm_up_text(height: int = 720) -> None:
+    """Load the font (and Pillow) ahead of the first frame: about 0.1 s, spent on another thread."""
+    _font(max(12, height // 32))
+
+
 def draw_text(image: np.ndarray, lines: list[str], corner: str = "top-left") -> None:
     """Draw ``lines`` in a translucent dark box into ``image (H, W, 3) uint8`` in place."""
     from PIL import Image, ImageDraw

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -13,37 +14,53 @@ from usdmotion.motion import Motion
 from usdmotion.render.angles import AngleOverlay, angle_values, parse_angle
 from usdmotion.render.camera import forward_direction, project_frames
 from usdmotion.render.compare import clock_text
-from usdmotion.render.gl import DynamicMesh, import_pyrender, offscreen_renderer, render_rgb
+from usdmotion.render.gl import DynamicMesh, import_pyrender, offscreen_renderer, render_rgba
+from usdmotion.render.lod import detail, fewer_triangles, pixel_height
 from usdmotion.render.overlay import draw_text
 from usdmotion.render.panel import PlotStrip, panel_series, parse_panel, strip_height
 from usdmotion.render.shadow import ContactShadow
 from usdmotion.skin import body_size, build_body, centre_of_mass, lbs, skinning_matrices
-from usdmotion.skin_stage import stage_body
+from usdmotion.skin_stage import stage_body_and_shapes
 from usdmotion.render.scene import (COLORS, StickFigure, add_lights, grid_mesh, material, to_render_space,
                                     tube_mesh)
+
+#: Frames skinned at once (one BLAS product), one chunk ahead of the rendering.
+CHUNK = 32
+FIRST_CHUNK = 4
 
 _UP_Z = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 
 
-def choose_body(motion: Motion, which: str, resolution: int):
-    """The body to draw: the input's own skinned meshes (``"stage"``; ``"auto"`` when it has
-    any) or the generated one (``"generated"``; ``"auto"`` otherwise)."""
+def choose_body(motion: Motion, which: str, resolution: int, keep: float = 1.0):
+    """The body to draw and its animated blend shapes' offsets (``(S, V, 3)`` or ``None``,
+    :func:`usdmotion.skin_stage.stage_body_and_shapes`): the input's own skinned meshes
+    (``"stage"``; ``"auto"`` when it has any) or the generated body (``"generated"``; ``"auto"``
+    otherwise) with about ``keep`` of its triangles (:func:`usdmotion.render.lod.fewer_triangles`)."""
     if which not in ("auto", "stage", "generated"):
         raise UsdMotionError(f"--body must be auto, stage or generated, got {which!r}")
     if which != "generated" and motion.meshes:
-        body = stage_body(motion)
-        if body is not None:
-            return body
+        found = stage_body_and_shapes(motion)
+        if found is not None:
+            return found
     if which == "stage":
         raise UsdMotionError("--body stage: the input has no skinned mesh that fits its skeleton")
-    return build_body(motion, resolution=resolution)
+    return fewer_triangles(build_body(motion, resolution=resolution), keep), None
+
+
+@dataclass(frozen=True)
+class Skinned:
+    """A chunk of skinned frames, render space (metres, Y up)."""
+
+    joints: np.ndarray                   # (K, J, 3) joint positions
+    positions: np.ndarray | None = None  # (K, V, 3) body vertices (None: no body)
+    normals: np.ndarray | None = None    # (K, V, 3) unit vertex normals
 
 
 class Actor:
     """One motion's body and/or stick figure, skinned a chunk of frames at a time."""
 
     def __init__(self, motion: Motion, frames: np.ndarray, style: str, resolution: int, ghost: bool,
-                 alignment=None, body: str = "auto"):
+                 alignment=None, body: str = "auto", keep: float = 1.0):
         self.motion, self.frames = motion, frames
         self.local_t = local_translations(motion)
         self.turn = (_UP_Z if motion.up_axis == "Z" else np.eye(3)) * 1.0
@@ -51,11 +68,11 @@ class Actor:
         if alignment is not None:  # the compared take, turned and moved onto the main one
             self.turn, self.shift = alignment.turn @ self.turn, alignment.shift
         self.scale = motion.meters_per_unit
-        self.body = self.stick = None
+        self.body = self.stick = self.shapes = None
         self.nodes = []
         self.inset = 0.0
         if style in ("body", "both"):
-            self.body = choose_body(motion, body, resolution)
+            self.body, self.shapes = choose_body(motion, body, resolution, keep)
             color = COLORS["ghost"] if ghost else COLORS["body"]
             # the ghost sits 1 % of the body size inside its own surface: where both motions
             # agree the opaque main body hides it, so it shows only where they differ
@@ -80,22 +97,33 @@ class Actor:
     def _space(self, points: np.ndarray) -> np.ndarray:
         return (points * self.scale) @ self.turn.T + self.shift
 
-    def prepare(self, index: np.ndarray) -> None:
-        """Skin the output frames ``index`` (one chunk) at once."""
+    def skin(self, index: np.ndarray) -> Skinned:
+        """The output frames ``index`` (one chunk) skinned at once (a pure function of the motion)."""
         frames = self.frames[index]
         world_q, world_p = fk_arrays(self.motion.rotations[frames], self.local_t[frames], self.motion.parents)
-        self.joints = self._space(world_p)
-        if self.body is not None:
-            matrices = skinning_matrices(world_q, world_p, self.body.bind_transforms)
-            positions, normals = lbs(self.body.vertices, self.weights, matrices, self.body.normals)
-            self.normals = normals @ self.turn.T
-            self.positions = self._space(positions) - self.inset * self.normals
+        joints = self._space(world_p)
+        if self.body is None:
+            return Skinned(joints)
+        matrices = skinning_matrices(world_q, world_p, self.body.bind_transforms)
+        rest = self.body.vertices
+        if self.shapes is not None:  # blend shapes first, then the skinning (UsdSkel's order)
+            rest = rest + np.einsum("fs,svk->fvk", self.motion.blend_shape_weights[frames], self.shapes)
+        positions, normals = lbs(rest, self.weights, matrices, self.body.normals)
+        normals = normals @ self.turn.T
+        return Skinned(joints, self._space(positions) - self.inset * normals, normals)
 
-    def update(self, k: int) -> None:
+    def prepare(self, index: np.ndarray) -> None:
+        """Skin the output frames ``index`` for :meth:`update` (``self.joints``: ``(K, J, 3)`` m)."""
+        self.chunk = self.skin(index)
+        self.joints = self.chunk.joints
+
+    def update(self, k: int, chunk: Skinned | None = None) -> None:
+        """Load frame ``k`` of ``chunk`` (default: the last :meth:`prepare`'s) into the meshes."""
+        chunk = self.chunk if chunk is None else chunk
         if self.body is not None:
-            self.body_mesh.update(self.positions[k], self.normals[k])
+            self.body_mesh.update(chunk.positions[k], chunk.normals[k])
         if self.stick is not None:
-            self.stick.update(self.joints[k])
+            self.stick.update(chunk.joints[k])
 
 
 class Views:
@@ -105,11 +133,14 @@ class Views:
         pyrender = import_pyrender()
         self.plan, self.options = plan, options
         self.side = other is not None and options.compare_mode == "side"
+        root = to_render_space(fk_arrays(motion.rotations[plan.frames], local_translations(motion)[plan.frames],
+                                         motion.parents)[1][:, 0], motion.meters_per_unit, motion.up_axis)
         self.actors = [Actor(motion, plan.frames, options.style, options.body_resolution, ghost=False,
-                             body=options.body)]
+                             body=options.body, keep=self._detail(motion, root))]
         if other is not None:
             self.actors.append(Actor(other, plan.other_frames, options.style, options.body_resolution,
-                                     ghost=not self.side, alignment=plan.alignment))
+                                     ghost=not self.side, alignment=plan.alignment,
+                                     keep=self._detail(other, root)))
         self.labels = options.labels
         self.other_fps = other.fps if other is not None else None
         scenes = [self._scene(pyrender) for _ in range(2 if self.side else 1)]
@@ -123,7 +154,19 @@ class Views:
         self.shadow = self._contact_shadow() if options.contact_shadow else None
         self.strip = self._plot_strip(motion) if options.panel else None
         self.view_nodes = self._view_cameras(pyrender) if plan.cameras else []
+        self.skin_seconds = 0.0
         self.renderer = offscreen_renderer(*plan.panel, msaa=options.msaa, fxaa=options.fxaa)
+
+    def _detail(self, motion: Motion, root: np.ndarray) -> float:
+        """The fraction of ``motion``'s generated body's triangles to draw (:mod:`usdmotion.render.lod`),
+        from its height in pixels in the view that shows it largest, around ``root (N, 3)`` (render
+        space, metres: the main take's root, which a compared take is aligned onto)."""
+        if not self.options.lod:
+            return 1.0
+        size = body_size(motion) * motion.meters_per_unit
+        return max(detail(pixel_height(size, np.linalg.norm(cam.poses[:, :3, 3] - root, axis=1), cam.yfov,
+                                       self.plan.panel[1]))
+                   for cam in (self.plan.cameras or (self.plan.camera,)))
 
     def _contact_shadow(self):
         """The :class:`~usdmotion.render.shadow.ContactShadow` under the main body (None: no body)."""
@@ -216,50 +259,83 @@ class Views:
             raise UsdMotionError(f"--trace: {exc.args[0]}") from None
 
     def run(self, emit, progress, timings: dict) -> None:
-        """Render every frame; ``emit(image, index)`` receives each finished image."""
+        """Render every frame; ``emit(images, index)`` receives each frame's rendered views, which
+        :meth:`finish` turns into the output image (on the writer thread: see
+        :class:`~usdmotion.render.output.WriterThread`).
+
+        The next chunk of frames is skinned on a helper thread while this one renders (NumPy
+        releases the GIL): the skinning leaves the rendering thread's path.
+        """
+        from concurrent.futures import ThreadPoolExecutor
+
         plan, options = self.plan, self.options
-        skin = draw = 0.0
+        draw = wait = 0.0
         n = len(plan.frames)
-        for start in range(0, n, 32):
-            index = np.arange(start, min(start + 32, n))
-            t0 = time.perf_counter()
-            for actor in self.actors:
-                actor.prepare(index)
-            skin += time.perf_counter() - t0
-            for k, i in enumerate(index):
+        # a short first chunk: the first frame waits for its skinning, the next ones are skinned meanwhile
+        bounds = np.unique(np.r_[0, np.arange(FIRST_CHUNK, n, CHUNK), n].clip(0, n))
+        chunks = [np.arange(a, b) for a, b in zip(bounds[:-1], bounds[1:])]
+        with ThreadPoolExecutor(1, thread_name_prefix="usdmotion-skin") as pool:
+            skinned = pool.submit(self._skin, chunks[0])
+            for c, index in enumerate(chunks):
                 t0 = time.perf_counter()
-                self.renderer._platform.make_current()
-                for actor in self.actors:
-                    actor.update(k)
-                if self.shadow is not None:
-                    self.shadow.update(self.actors[0].joints[k])
-                images = []
-                if self.view_nodes:
-                    scene = self.scenes[0]
-                    for view, (node, cam) in enumerate(zip(self.view_nodes, plan.cameras)):
-                        for k, grid in enumerate(self.view_grids):
-                            grid.is_visible = k == view
-                        scene.main_camera_node = node
-                        scene.set_pose(node, cam.poses[i])
-                        images.append(render_rgb(self.renderer, scene, options.shadows))
-                else:
-                    for scene in self.scenes:
-                        scene.set_pose(scene.camera_node, plan.camera.poses[i])
-                        images.append(render_rgb(self.renderer, scene, options.shadows))
-                if self.angles is not None:
-                    self.angles.draw(images[0], i)
-                if options.overlay:
-                    self._overlay(images, i)
-                image = self._compose(images, i)
-                draw += time.perf_counter() - t0
-                emit(image, int(i))
-                if progress is not None:
-                    progress(int(i) + 1, n, "rendering")
-        timings.update(skin=skin, render=draw)
+                chunk = skinned.result()
+                wait += time.perf_counter() - t0
+                if c + 1 < len(chunks):
+                    skinned = pool.submit(self._skin, chunks[c + 1])
+                for k, i in enumerate(index):
+                    t0 = time.perf_counter()
+                    self.renderer._platform.make_current()
+                    for actor, data in zip(self.actors, chunk):
+                        actor.update(k, data)
+                    if self.shadow is not None:
+                        self.shadow.update(chunk[0].joints[k])
+                    images = self._render(i)
+                    draw += time.perf_counter() - t0
+                    emit(images, int(i))
+                    if progress is not None:
+                        progress(int(i) + 1, n, "rendering")
+            skinned.cancel()
+        timings.update(skin=self.skin_seconds, skin_wait=wait, render=draw)
+
+    def _skin(self, index: np.ndarray) -> list:
+        """Every actor's :class:`Skinned` frames ``index`` (on the helper thread)."""
+        t0 = time.perf_counter()
+        out = [actor.skin(index) for actor in self.actors]
+        self.skin_seconds += time.perf_counter() - t0
+        return out
+
+    def _render(self, i: int) -> list[np.ndarray]:
+        """The views of output frame ``i``: ``(H, W, 4)`` uint8 RGBA images (alpha meaningless), one per view."""
+        plan, options = self.plan, self.options
+        images = []
+        if self.view_nodes:
+            scene = self.scenes[0]
+            for view, (node, cam) in enumerate(zip(self.view_nodes, plan.cameras)):
+                for k, grid in enumerate(self.view_grids):
+                    grid.is_visible = k == view
+                scene.main_camera_node = node
+                scene.set_pose(node, cam.poses[i])
+                images.append(render_rgba(self.renderer, scene, options.shadows))
+        else:
+            for scene in self.scenes:
+                scene.set_pose(scene.camera_node, plan.camera.poses[i])
+                images.append(render_rgba(self.renderer, scene, options.shadows))
+        return images
+
+    def finish(self, images: list[np.ndarray], i: int) -> np.ndarray:
+        """The output image of frame ``i`` from its rendered views: angle arcs and labels, the
+        frame/time text, the views composed with the plot strip (see :meth:`_compose`)."""
+        rgb = [image[..., :3] for image in images]  # drawn into in place
+        if self.angles is not None:
+            self.angles.draw(rgb[0], i)
+        if self.options.overlay:
+            self._overlay(rgb, i)
+        return self._compose(images, i)
 
     def _compose(self, images: list[np.ndarray], i: int) -> np.ndarray:
         """The output frame: views side by side (or in the layout's grid, padded to the
-        output size), the plot strip under them."""
+        output size), the plot strip under them; ``(H, W, C)`` as the views (RGBA: the encoder
+        takes it as it is, no repacking)."""
         rows, cols = self.plan.grid_shape
         if self.view_nodes:
             block = np.vstack([np.hstack(images[r * cols:(r + 1) * cols]) for r in range(rows)])
@@ -268,12 +344,13 @@ class Views:
         parts = [block] if self.strip is None else [block, None]
         height = self.options.height - (0 if self.strip is None else self.strip.image.shape[0])
         if block.shape[:2] != (height, self.options.width):  # panels rounded down: pad with the background
-            pad = np.empty((height, self.options.width, 3), np.uint8)
+            pad = np.empty((height, self.options.width, block.shape[2]), np.uint8)
             pad[...] = np.asarray(block[0, 0])
             pad[:block.shape[0], :block.shape[1]] = block
             parts[0] = pad
         if self.strip is not None:
-            parts[1] = self.strip.frame(i)
+            strip = self.strip.frame(i)
+            parts[1] = strip if block.shape[2] == 3 else np.dstack([strip, np.full(strip.shape[:2], 255, np.uint8)])
         return np.ascontiguousarray(parts[0] if len(parts) == 1 else np.vstack(parts))
 
     def _overlay(self, images: list[np.ndarray], i: int) -> None:
