@@ -49,11 +49,23 @@ def test_hands_do_not_flip_on_the_walk_onto_daz(walk_onto_daz):
     motion, pairs = result.motion, result.report["map"]["pairs"]
     src_steps = largest_steps(source.rotations)
     steps = largest_steps(motion.rotations)
-    for name in ("rHand", "lHand", "rFoot", "lFoot"):
+    for name in ("rHand", "lHand"):
         j, s = motion.joint_names.index(name), source.joint_names.index(pairs[name])
         assert steps[j] <= max(2.0 * src_steps[s], 1.0), (name, steps[j], src_steps[s])
-    for row in ("plain", "result"):  # the plain solve and the contact solve
-        assert result.report["compare"][row]["flips"] == {}, row
+    assert result.report["compare"]["plain"]["flips"] == {}
+
+
+def test_contact_solve_feet_do_not_flip_on_the_walk_onto_daz(walk_onto_daz):
+    """Cause: the leg IK turned the feet's End Sites up onto a floor estimated from the contact
+    joints, which the source's toe tips go below (25/9 and 55/9 deg/frame); fixed by the floor
+    including the mapped tips (contact_terms.tips_floor)."""
+    source, result = walk_onto_daz
+    motion, pairs = result.motion, result.report["map"]["pairs"]
+    src_steps, steps = largest_steps(source.rotations), largest_steps(motion.rotations)
+    for name in ("rFoot", "lFoot"):
+        j, s = motion.joint_names.index(name), source.joint_names.index(pairs[name])
+        assert steps[j] <= max(2.0 * src_steps[s], 1.0), (name, steps[j], src_steps[s])
+    assert result.report["quality"]["flips"] == {}
 
 
 def test_single_point_bones_point_at_their_target(walk_onto_daz):
