@@ -13,7 +13,13 @@ taken twice: when ``render()`` was called, and when its pixels were there (the G
 compiles and draws after ``render()`` returns; the page reads one pixel back to wait for it, only
 under the benchmark's ``window.studioTimings``); the goal ratio is of the pixels. The skinned body
 (GLB) follows and is timed separately, cold (built) and warm (cached in the output folder).
-The ``url`` row is the first page of a freshly started browser on a take the server has not read. Also: how soon a library of ``--library`` files is listed and filled in.
+The ``url`` row is the first page of a freshly started browser on a take the server has not read
+(it includes the browser's GPU process starting: its first WebGL context waits for it); the ``link``
+row the same in a new tab of that running browser, on another unread take (a link opened in the
+browser a coach already has open). Their ``on screen`` column is when the first frame was presented
+(the page's first contentful paint: a linked page shows its view alone, and draws nothing in it,
+until the take's first frame is there; Chrome times a paint when the GPU process presented it).
+Also: how soon a library of ``--library`` files is listed and filled in.
 Prints a table; writes ``benchmarks/results/studio.json``.
 """
 
@@ -81,6 +87,10 @@ def open_and_play(browser, base: str, take_id: str, play_s: float, by_url: bool 
     page.wait_for_function("window.studio.player.bodyPixelsAt !== null", timeout=300_000)
     first, body, first_px, body_px = page.evaluate("['firstDrawnAt', 'bodyDrawnAt', 'firstPixelsAt', 'bodyPixelsAt']"
                                                    ".map(k => window.studio.player[k])")
+    on_screen = None
+    if by_url:  # the first contentful paint: the take's first frame presented (see the docstring)
+        page.wait_for_function("performance.getEntriesByName('first-contentful-paint').length", timeout=60_000)
+        on_screen = page.evaluate("performance.getEntriesByName('first-contentful-paint')[0].startTime") / 1000
     size = page.evaluate("[window.studio.player.canvas.width, window.studio.player.canvas.height]")
     page.keyboard.press("Space")
     page.wait_for_timeout(play_s * 1000)
@@ -90,7 +100,8 @@ def open_and_play(browser, base: str, take_id: str, play_s: float, by_url: bool 
     (t0, f0), (t1, f1) = log[0], log[-1]
     seconds = (t1 - t0) / 1000
     return {"first_frame_s": (first - t_click) / 1000, "body_s": (body - t_click) / 1000,
-            "first_pixels_s": (first_px - t_click) / 1000, "body_pixels_s": (body_px - t_click) / 1000, "canvas": size,
+            "first_pixels_s": (first_px - t_click) / 1000, "on_screen_s": on_screen,
+            "body_pixels_s": (body_px - t_click) / 1000, "canvas": size,
             "take_frames_per_s": (f1 - f0) / seconds, "drawn_per_s": (len(log) - 1) / seconds}
 
 
@@ -133,11 +144,14 @@ def main() -> None:
     take_id = f"0/{take.name}"
     unread = take.with_name(f"unread_{take.name}")  # opened first by URL: nothing read or cached yet
     unread.write_bytes(take.read_bytes())
+    unread_too = take.with_name(f"unread2_{take.name}")  # the link row's: also not read yet
+    unread_too.write_bytes(take.read_bytes())
     rows = {}
     with running_studio([take.parent], units="asf", out=tmp / "out") as base, sync_playwright() as p:
         browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
         try:
             rows["url"] = open_and_play(browser, base, f"0/{unread.name}", args.play, by_url=True)
+            rows["link"] = open_and_play(browser, base, f"0/{unread_too.name}", args.play, by_url=True)  # a new tab
             rows["cold"] = open_and_play(browser, base, take_id, args.play)  # server reads, FK, builds the body
             rows["warm"] = open_and_play(browser, base, take_id, args.play)  # server caches, GLB from out/cache
             library = library_fill(browser, args.library, tmp)
@@ -151,14 +165,18 @@ def main() -> None:
     print(f"load average (1 min): {os.getloadavg()[0]:.1f}")
     print(f"studio: {args.frames}-frame, 31-joint take at 120 fps; headless Chromium {platform.machine()}, "
           "SwiftShader WebGL, canvas " + "x".join(map(str, rows["cold"]["canvas"])))
-    print("url: fresh page on the take's URL, timed from navigation (reads the file); cold: click in the "
-          "library (file read while listing), body built; warm: click again, body from the cache")
+    print("url: fresh page on the take's URL, timed from navigation (reads the file); link: the same in a new tab "
+          "of the running browser (another unread take); cold: click in the library (file read while listing), "
+          "body built; warm: click again, body from the cache")
     print("first frame / body: when render() was called; pixels: when the GPU process had drawn that frame "
           "(one pixel read back)")
-    print(f"{'open':<6}{'first frame s':>15}{'pixels s':>10}{'goal ratio':>12}{'body s':>9}{'pixels s':>10}"
-          f"{'take frames/s':>15}{'drawn/s':>9}")
+    print("on screen (url, link): the page's first contentful paint, i.e. the take's first frame presented")
+    print(f"{'open':<6}{'first frame s':>15}{'pixels s':>10}{'goal ratio':>12}{'on screen s':>13}{'body s':>9}"
+          f"{'pixels s':>10}{'take frames/s':>15}{'drawn/s':>9}")
     for name, r in rows.items():
-        print(f"{name:<6}{r['first_frame_s']:>15.3f}{r['first_pixels_s']:>10.3f}{r['first_pixels_s'] / 1.0:>12.2f}"
+        shown = f"{r['on_screen_s']:>13.3f}" if r["on_screen_s"] is not None else f"{'-':>13}"
+        print(f"{name:<6}{r['first_frame_s']:>15.3f}{r['first_pixels_s']:>10.3f}"
+              f"{r['first_pixels_s'] / 1.0:>12.2f}{shown}"
               f"{r['body_s']:>9.2f}{r['body_pixels_s']:>10.2f}{r['take_frames_per_s']:>15.1f}{r['drawn_per_s']:>9.1f}")
     print(f"{'request (warm)':<16}{'server ms':>10}{'bytes':>12}{'client ms':>11}")
     for name, (server_ms, size, client_ms) in requests.items():

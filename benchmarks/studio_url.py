@@ -7,9 +7,11 @@ Each run starts a fresh headless Chromium (software WebGL, the tests' flags) on 
 5,000-frame take the server has not read, opens ``/?take=...`` and records, in ms from navigation:
 the HTML parsed (``domInteractive``), main.js fetched, the server had the take's positions (their
 response started: it is sent once computed; the server reads the file first), the first
-render and its pixels, the body's pixels; and the calls into WebGL that blocked the page for more
-than 3 ms before the first pixels (each is a round trip to the GPU process: context creation, the
-first query after it, shader link status, the benchmark's pixel read-back), by kind. Medians over
+render and its pixels, when that frame was on the screen (the page's first contentful paint: a
+linked page shows its view alone, and draws nothing in it, until the take's first frame; Chrome
+times a paint when the GPU process presented it), the body's pixels; and the calls into WebGL that
+blocked the page for more than 3 ms before the first pixels (each is a round trip to the GPU process:
+context creation, the first query after it, shader link status, the benchmark's pixel read-back), by kind. Medians over
 the runs; prints a table and writes ``benchmarks/results/studio_url.json``.
 """
 
@@ -54,11 +56,14 @@ READ = """() => {
   const waits = window.glWaits.filter(([, t]) => t < p.firstPixelsAt);
   return {dom_interactive: nav.domInteractive, main_js: entry('/app/main.js').responseEnd,
           positions: entry('/api/positions').responseStart,
-          first_render: p.firstDrawnAt, first_pixels: p.firstPixelsAt, body_pixels: p.bodyPixelsAt,
+          first_render: p.firstDrawnAt, first_pixels: p.firstPixelsAt,
+          on_screen: (performance.getEntriesByName('first-contentful-paint')[0] || {startTime: NaN}).startTime,
+          body_pixels: p.bodyPixelsAt,
           gl_waits: waits.map(([name, , dt]) => [name, dt])};
 }"""
 
-COLUMNS = ("dom_interactive", "main_js", "positions", "first_render", "first_pixels", "body_pixels", "gl_wait_total")
+COLUMNS = ("dom_interactive", "main_js", "positions", "first_render", "first_pixels", "on_screen", "body_pixels",
+           "gl_wait_total")
 
 
 def one_run(p, base: str, take_id: str) -> dict:
@@ -71,6 +76,7 @@ def one_run(p, base: str, take_id: str) -> dict:
         page.add_init_script(GL_LOG)
         page.goto(f"{base}/?take={take_id}")
         page.wait_for_function("window.studio && window.studio.player.bodyPixelsAt !== null", timeout=300_000)
+        page.wait_for_function("performance.getEntriesByName('first-contentful-paint').length", timeout=60_000)
         row = page.evaluate(READ)
     finally:
         browser.close()

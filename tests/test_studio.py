@@ -142,6 +142,35 @@ def test_positions_are_the_library_fk_in_metres(studio):
     np.testing.assert_allclose(served, joint_positions(walk) * walk.meters_per_unit, atol=1e-5)
 
 
+def test_a_linked_page_starts_reading_its_take(tmp_path, monkeypatch):
+    """``GET /?take=ID`` starts computing the take's positions (its page asks for them next); they are
+    computed once and are the library's FK; links to missing or broken takes still get the page."""
+    import time
+
+    from usdmotion.studio import takes
+
+    lib = make_library(tmp_path)
+    computed, view_positions = [], takes.view_positions
+    monkeypatch.setattr(takes, "view_positions",
+                        lambda motion: computed.append(motion.n_frames) or view_positions(motion))
+    with running_studio([lib], out=tmp_path / "out") as base:
+        assert raw_get(base, "/?take=0/walk.bvh")[0] == 200
+        deadline = time.monotonic() + 60
+        while not computed and time.monotonic() < deadline:
+            time.sleep(0.02)
+        walk = read_motion(lib / "walk.bvh", units="asf")
+        assert computed == [walk.n_frames]  # before any request for them
+        status, body = raw_get(base, "/api/positions?take=0/walk.bvh")
+        assert status == 200 and computed == [walk.n_frames]  # not again
+        served = np.frombuffer(body, dtype=np.float32).reshape(walk.n_frames, walk.n_joints, 3)
+        np.testing.assert_allclose(served, joint_positions(walk) * walk.meters_per_unit, atol=1e-5)
+        for bad in ("0/missing.bvh", "0/broken.bvh", "0/../../outside.bvh", "0/escape.bvh"):
+            assert raw_get(base, f"/?take={bad}")[0] == 200
+        assert get_json(base, "/api/skeleton?take=0/broken.bvh") == (
+            422, {"error": "broken.bvh:4:3: OFFSET has 2 values, expected 3"})
+        assert computed == [walk.n_frames]  # nothing read out of the root
+
+
 def test_series_are_the_analysis_module(studio):
     from usdmotion.anthropometry import body_model
     from usdmotion.ops.analyse import analyse

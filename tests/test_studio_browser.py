@@ -264,13 +264,54 @@ def test_url_reopens_the_same_frame_and_camera(studio, browser, page):
         assert [asked.count(what) for what in ("skeleton", "positions", "glb")] == [1, 1, 1], asked
         assert asked.index("positions") < asked.index("takes") and asked.index("positions") < asked.index("glb")
         assert other.evaluate("window.studio.player.renderer.getContext() === window.early.gl")
-        # the tool panels' modules (and uPlot) are fetched only once the take's first frame is drawn
+        # the tool panels' modules (and uPlot) and the library's list (hidden until then) are fetched only
+        # once the take's first frame is drawn
         assert other.evaluate("""() => ['app/segment.js', 'app/edits.js', 'app/retarget.js', 'app/video.js',
-            'vendor/uplot/dist/uPlot.esm.js'].map(path => performance.getEntriesByName(new URL(path, location.origin).href)[0])
+            'vendor/uplot/dist/uPlot.esm.js', 'api/takes'].map(path => performance.getEntriesByName(new URL(path, location.origin).href)[0])
             .every(entry => entry && entry.startTime > window.studio.player.firstDrawnAt)""")
         assert other.evaluate("window.studio.player.figure.body !== null")
     finally:
         other.close()
+
+
+def test_a_linked_page_is_painted_with_its_takes_first_frame(studio, browser):
+    """A fresh page on a take's link shows its view alone, and draws nothing in it, until the take's
+    first frame is there: the page's first contentful paint is that frame; then the rest of the page
+    is shown, and the joints' spheres (left out of that frame: a costly shader program) follow."""
+    base, _ = studio
+    page = browser.new_page(viewport={"width": 1400, "height": 900})
+    errors = []
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    try:
+        page.add_init_script("window.studioRevealMs = 120000")  # not the fallback's reveal on a slow machine
+        open_view(page, base, f"take={WALK_ID}&f=100")
+        page.wait_for_function("performance.getEntriesByName('first-contentful-paint').length > 0")
+        painted, drawn = page.evaluate("[performance.getEntriesByName('first-contentful-paint')[0].startTime, "
+                                       "window.studio.player.firstDrawnAt]")
+        assert painted >= drawn, (painted, drawn)
+        page.wait_for_function("!document.documentElement.classList.contains('opening')")
+        assert page.is_visible("#library") and page.is_visible("#transport") and frame_of(page) == 100
+        page.wait_for_function("window.studio.player.figure.joints.visible")
+    finally:
+        page.close()
+    assert not errors, errors
+
+
+def test_a_link_to_a_take_that_cannot_be_read_shows_its_line_alone(studio, page):
+    base, _ = studio
+    for take, line in [("0/missing.bvh", "missing.bvh: not found"),
+                       ("0/broken.bvh", "broken.bvh:4:3: OFFSET has 2 values, expected 3")]:
+        open_view(page, base, f"take={take}")
+        assert page.inner_text("#open-error") == line
+        assert page.is_hidden("#player")  # not the early canvas, grey with a stray line, beside the line
+        assert not page.evaluate("document.documentElement.classList.contains('opening')")
+    page.screenshot(path=SHOTS / "link_error.png")
+    # the page and the server keep working: the list is there and a take opens from it
+    assert page.locator("#takes tbody tr").count() == 3
+    page.locator(f'#takes tr[data-id="{WALK_ID}"]').click()
+    page.wait_for_function("window.studio.player.firstDrawnAt !== null")
+    assert page.is_visible("#canvas") and page.is_hidden("#open-error") and page.is_hidden("#welcome")
+    assert frame_of(page) == 0
 
 
 def test_stroboscope_exports_a_png(studio, page):

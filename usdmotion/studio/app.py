@@ -7,6 +7,7 @@ thread pool (sync endpoints); a take that fails answers 422 with its one-line er
 
 from __future__ import annotations
 
+import threading
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -60,6 +61,21 @@ class StudioApi:
             return self.cache.get(entry, what, fn)
         except Exception as exc:  # noqa: BLE001 - one line to the page, the server keeps running
             raise StudioError(422, error_line(entry, exc)) from None
+
+    def prefetch(self, take_id: str | None) -> None:
+        """Start computing a linked take's positions (reading the file first) on a thread, when its
+        page is asked for: the page's own requests for them come after its HTML, and wait for this
+        (the cache computes each value once). A failure is left for those requests to report."""
+        entry = self.library.resolve(take_id) if take_id else None
+        if entry is not None:
+            threading.Thread(target=self.compute_quietly, args=(entry, "positions", takes.view_positions),
+                             daemon=True).start()
+
+    def compute_quietly(self, entry: Entry, what: str, fn) -> None:
+        try:
+            self.compute(entry, what, fn)
+        except StudioError:
+            pass
 
     def takes(self, request: Request) -> Response:
         entries = self.library.scan()
@@ -148,6 +164,7 @@ def create_app(roots: list[Path], options: dict | None = None, out: Path | None 
     api.jobs = jobs.Jobs(out)
 
     def index(request: Request) -> Response:
+        api.prefetch(request.query_params.get("take"))
         return FileResponse(WEB / "index.html", headers={"Cache-Control": "no-cache"})
 
     routes = [Route("/", index), *api.routes(), *jobs.routes(api.jobs), *edit_panel.routes(api),

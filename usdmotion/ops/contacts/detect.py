@@ -20,6 +20,13 @@ the exit thresholds that contains at least one frame meeting the enter threshold
 shorter than ``min_gap`` seconds between two contacts are filled, and contacts shorter
 than ``min_duration`` seconds are dropped.
 
+**Heel-off**: a heel or ankle contact ends where that joint has risen more than
+:data:`HEEL_RISE_M` above its level in that contact (the run's median height) while the
+toe of the same side stays planted — from there the foot rolls over its toe, which is the
+only joint still planted (and symmetrically a toe-first landing starts the heel's contact
+once it is down). Without it, a heel contact went on while the source's heel rose up to
+4.8 cm (CMU walk), and a retargeted flat foot held there needed a longer leg than it had.
+
 Everything is vectorised over frames and contact joints (run lengths by ``cumsum``/``diff``).
 """
 
@@ -35,6 +42,9 @@ from usdmotion.motion import Motion
 
 #: Index of each up axis in a position vector.
 UP_INDEX = {"Y": 1, "Z": 2}
+#: Heel-off: a heel/ankle contact ends where the joint is this many metres above its level
+#: in the contact while the toe of its side is still planted (see the module docstring).
+HEEL_RISE_M = 0.005
 
 
 @dataclass(frozen=True)
@@ -267,6 +277,28 @@ def detect_in_signals(heights: np.ndarray, speeds: np.ndarray, fps: float, thres
     return clean_runs(contact, max(min_frames, 1), min_gap)
 
 
+def heel_off(contact: np.ndarray, heights: np.ndarray, parts: tuple[str, ...],
+             rise: float = HEEL_RISE_M) -> np.ndarray:
+    """``contact (F, C)`` with every heel/ankle contact ended at heel-off (and begun at
+    heel-down): the frames at the end (start) of a contact where the joint is more than
+    ``rise`` metres above its median height over that contact while the toe of the same
+    side (``parts``: ``"left_toe"``...) is planted. ``heights (F, C)`` in metres."""
+    contact = np.array(contact, bool)
+    index = {p: c for c, p in enumerate(parts)}
+    for c, part in enumerate(parts):
+        side, _, kind = part.partition("_")
+        toe = index.get(f"{side}_toe")
+        if kind not in ("heel", "ankle") or toe is None:
+            continue
+        for a, b in runs(contact[:, c]):
+            up = (heights[a:b, c] - np.median(heights[a:b, c]) > rise) & contact[a:b, toe]
+            lead = int(np.argmin(up)) if not up.all() else b - a  # leading frames up (toe-first landing)
+            trail = int(np.argmin(up[::-1])) if not up.all() else b - a  # trailing frames up (heel-off)
+            contact[a:a + lead, c] = False
+            contact[max(a + lead, b - trail):b, c] = False
+    return contact
+
+
 def detect_contacts(motion: Motion, *, floor: float | None = None, thresholds: ContactThresholds | None = None,
                     joints: tuple[str, ...] | None = None, source: str | None = None) -> FootContacts:
     """Foot contacts of ``motion`` (see the module docstring for the rule).
@@ -297,6 +329,7 @@ def detect_contacts(motion: Motion, *, floor: float | None = None, thresholds: C
     floor = estimate_floor(heights, thresholds.floor_percentile) if floor is None else float(floor)
     clearance = planted_clearance(heights, floor, thresholds.floor_percentile)
     contact = detect_in_signals(heights, speeds, motion.fps, thresholds, floor, clearance)
+    contact = heel_off(contact, heights, parts)
     return FootContacts(tuple(motion.joint_names[i] for i in indices), indices, parts, contact, floor, clearance,
                         motion.up_axis, float(motion.fps), thresholds)
 

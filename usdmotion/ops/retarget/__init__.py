@@ -10,7 +10,9 @@
 
 Modules along the data flow: ``hierarchy`` (rigs, removing/adding joints), ``jointmap``,
 ``problem`` (the solvers' static structure and constants), ``losses``, ``tree_step``
-(the O(joints) LM step), ``solve``, ``pipeline`` (``retarget``), ``report``, ``files``.
+(the O(joints) LM step), ``solve``, ``contact_terms`` and ``leg_ik`` (the contact-aware
+solve: fixed points of the planted feet, then the legs meet them analytically), ``pipeline``
+(``retarget``), ``report``, ``files``.
 """
 
 from usdmotion.ops.retarget.files import retarget_files

@@ -111,3 +111,37 @@ def _aim(bases, origin, rays, targets) -> np.ndarray:
     kabsch = matrix_to_quat(w_ @ (fix[:, :, None] * vt))
     planar = s[:, 1] > COLLINEAR * np.maximum(s[:, 0], 1e-300)
     return np.where(planar[:, None], kabsch, swing)
+
+
+def aim_single_points(setup, q: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """``q (F, J, 4)`` with every optimised joint whose subtree holds exactly one mapped joint
+    (a hand before its one mapped finger, a toe before its tip, a head before its top; the
+    topmost of such a chain) turned by the shortest swing that points it at that joint's
+    target from where the solve put it: the exact minimiser of the only position it moves
+    (``t (F, J, 3)`` local translations, root: world; ``setup.targets`` the same frame).
+
+    The LM solve stops when a frame's *whole* loss gains less than 10⁻⁵ of itself; a bone
+    that moves one point near the joint barely shows in it, so such bones stopped anywhere
+    short of their target — at a different place in neighbouring frames: CMU walk → DAZ
+    hands stepped 7°/frame where the source's step ≤ 2°. The swing keeps the twist."""
+    from usdmotion.kinematics import fk_arrays
+    from usdmotion.ops.retarget.hierarchy import ancestor_matrix
+
+    rig, mapped = setup.rig, setup.mapped
+    below = ancestor_matrix(rig.parents)[:, mapped]  # (J, M): mapped strict descendants
+    single = {int(j) for j in setup.rot_joints if below[j].sum() == 1}
+    tops = [j for j in sorted(single) if rig.parents[j] not in single]
+    if not tops:
+        return q
+    world_q, world_p = fk_arrays(q, t, rig.parents)
+    q = q.copy()
+    for j in tops:  # disjoint subtrees under unchanged parents: one FK serves all
+        m = mapped[np.flatnonzero(below[j])[0]]
+        now, want = world_p[:, m] - world_p[:, j], setup.targets[:, m] - world_p[:, j]
+        size = np.minimum(np.linalg.norm(now, axis=-1), np.linalg.norm(want, axis=-1))
+        ok = size > 1e-9 * max(1.0, float(np.abs(setup.offsets).max()))
+        swing = np.where(ok[:, None], quat_between(np.where(ok[:, None], now, 1.0), np.where(ok[:, None], want, 1.0)),
+                         identity_quats((len(q),)))
+        parent_q = world_q[:, rig.parents[j]] if rig.parents[j] >= 0 else identity_quats((len(q),))
+        q[:, j] = quat_mul(quat_conjugate(parent_q), quat_mul(swing, world_q[:, j]))
+    return q

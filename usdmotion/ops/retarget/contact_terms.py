@@ -21,19 +21,7 @@ to arrays in the target's frame and units (the solver's, before centring):
   ``floor + k · clearance`` (the target's ankle sits ``k`` times as high as the source's;
   never below :data:`ABOVE_FLOOR_M`); a toe's fixed point is then moved to a foot's
   length from its ankle's (:func:`foot_length_apart`);
-* every target joint is kept above the floor (a one-sided term);
-* between contacts the contact joint follows its (root-scaled) source position plus an
-  offset blended linearly from the end of one contact's fixed point to the start of the
-  next (footskate clean-up, Kovar et al. 2002), at :data:`SWING_SHARE` of the weight, so
-  it never jumps onto or off a fixed point;
-* the weight itself ramps between the swing share and full weight over :data:`RAMP_S`
-  seconds *outside* every contact (full weight on every contact frame): a weight that
-  switches in one frame moves the whole compromise between the terms in one frame, which
-  showed as steps of several degrees per frame in the legs and the upper body.
-
-Weights (per unit² of target length; the mapped joints weigh 1): :data:`CONTACT_WEIGHT`
-for a planted joint, :data:`FLOOR_WEIGHT` per unit² below the floor; in the contact solve
-the mapped joints above the legs weigh :data:`BODY_SHARE` (:func:`body_share`).
+* the legs then meet these points analytically (:mod:`usdmotion.ops.retarget.leg_ik`).
 """
 
 from __future__ import annotations
@@ -46,24 +34,9 @@ from usdmotion.kinematics import fk_arrays
 from usdmotion.ops.contacts.detect import UP_INDEX, FootContacts, runs
 from usdmotion.ops.retarget.hierarchy import ancestor_matrix
 
-#: Weight of a planted contact joint's distance to its fixed point (mapped joints: 1).
-CONTACT_WEIGHT = 100.0
-#: Weight of a joint's depth below the floor (one-sided).
-FLOOR_WEIGHT = 1000.0
 ROOT_SCALES = ("off", "legs")
 #: Smallest height (m) above the floor at which a contact joint is planted.
 ABOVE_FLOOR_M = 0.001
-#: Between contacts the contact joint follows the source plus an offset blended from the
-#: end of one contact to the start of the next, with this share of the contact weight, so
-#: a foot never jumps onto or off its fixed point.
-SWING_SHARE = 0.1
-#: In the contact solve, the mapped joints above the legs weigh this share of their weight
-#: (see :func:`body_share`).
-BODY_SHARE = 0.2
-#: Seconds over which a contact weight ramps from its swing share to full weight before a
-#: contact begins (and back after it ends): a step in weight moves the whole compromise
-#: between the terms in one frame (flips of the feet and the upper body).
-RAMP_S = 0.05
 
 
 @dataclass(frozen=True, eq=False)
@@ -72,10 +45,11 @@ class ContactTerms:
 
     Attributes:
         joints: ``(C,)`` target contact joints.
-        weights: ``(F, C)`` weight per frame (:data:`CONTACT_WEIGHT` during contact, ramped
-            down to :data:`SWING_SHARE` of it between contacts, see :func:`ramp`).
-        targets: ``(F, C, 3)`` fixed point of each contact interval, blended between them.
-        floor: floor height on the target's up axis (target units).
+        planted: ``(F, C, 3)`` the fixed point of each contact interval on its frames (the
+            root-scaled source elsewhere).
+        level: ``(C,)`` planted level of each contact joint on the up axis (target units).
+        floor: floor height on the target's up axis (target units): the contacts' floor, or
+            lower where the source's toe tips go lower (:func:`tips_floor`).
         up: index of the up axis.
         leg_ratio: ``k``, target / source leg length.
         shift: ``(F, J, 3)`` translation added to each target joint's source position (root
@@ -87,8 +61,8 @@ class ContactTerms:
     """
 
     joints: np.ndarray
-    weights: np.ndarray
-    targets: np.ndarray
+    planted: np.ndarray
+    level: np.ndarray
     floor: float
     up: int
     leg_ratio: float
@@ -126,8 +100,7 @@ def leg_ratio(setup, source, s: float, contact_sources: np.ndarray, contact_targ
     return t_sum / s_sum if s_sum > 0 else 1.0
 
 
-def contact_terms(setup, source, contacts: FootContacts, root_scale: str = "off",
-                  contact_weight: float = CONTACT_WEIGHT) -> ContactTerms | None:
+def contact_terms(setup, source, contacts: FootContacts, root_scale: str = "off") -> ContactTerms | None:
     """The contact arrays of ``setup`` (a :class:`~usdmotion.ops.retarget.pipeline.Setup`)
     for the source's ``contacts``; ``None`` when no contact joint is followed by the target."""
     if root_scale not in ROOT_SCALES:
@@ -161,9 +134,8 @@ def contact_terms(setup, source, contacts: FootContacts, root_scale: str = "off"
         shift[:, legs] += (k - 1.0) * (setup.targets[:, legs] - hips[:, None])
     clearance = np.asarray(contacts.clearance)[keep] / source.meters_per_unit * s
     # (C,) planted level of each target contact joint; a joint planted on the floor itself (the
-    # lowest one, clearance 0) is held a hair above it: the floor term is one-sided and soft
+    # lowest one, clearance 0) is held a hair above it
     level = np.maximum(floor + k * clearance, floor + ABOVE_FLOOR_M / rig.meters_per_unit)
-    targets = np.zeros((n_frames, len(keep), 3))
     origin = centre[0] * _horizontal(up)
     contact = np.asarray(contacts.contact)[:, keep]
     scaled = origin + kh * (src_pos - origin)  # (F, C, 3) the source joints, root-scaled
@@ -174,44 +146,15 @@ def contact_terms(setup, source, contacts: FootContacts, root_scale: str = "off"
             planted[a:b, c] = scaled[a:b, c].mean(axis=0)
     planted[..., up] = np.where(contact, level[None], planted[..., up])
     planted = foot_length_apart(setup, joints, contact, planted, up)
-    # between contacts the offset from the source blends linearly from one contact's last
-    # frame to the next one's first (footskate clean-up)
-    frames = np.arange(n_frames)
-    for c in range(len(keep)):
-        on = np.flatnonzero(contact[:, c])
-        if on.size:
-            offset = planted[on, c] - scaled[on, c]
-            targets[:, c] = scaled[:, c] + np.stack([np.interp(frames, on, offset[:, i]) for i in range(3)], axis=1)
-    weights = contact_weight * ramp(contact, ramp_frames(source.fps))
+    lowest = min(floor, tips_floor(setup, joints, floor, k, up))
     restated = replace(contacts, joints=tuple(rig.joint_names[j] for j in joints), indices=joints,
                        parts=tuple(contacts.parts[c] for c in keep), contact=np.asarray(contacts.contact)[:, keep],
-                       floor=float(floor * rig.meters_per_unit), clearance=k * clearance * rig.meters_per_unit,
+                       floor=float(lowest * rig.meters_per_unit), clearance=(level - lowest) * rig.meters_per_unit,
                        up=rig.up_axis)
-    return ContactTerms(joints, weights, targets, float(floor), up, float(k), shift, root_shift, restated, dropped)
+    return ContactTerms(joints, planted, level, float(lowest), up, float(k), shift, root_shift,
+                        restated, dropped)
 
 
-def leg_chains(parents: np.ndarray, contact_joints: np.ndarray) -> np.ndarray:
-    """``(J,)`` bool: the contact joints, their parents and grandparents (toe, ankle, knee,
-    hip: the rotations that place a foot) and every joint below a contact joint."""
-    chain = np.zeros(len(parents), bool)
-    for j in contact_joints:
-        for _ in range(3):
-            if j < 0:
-                break
-            chain[j] = True
-            j = parents[j]
-    return chain | ancestor_matrix(parents)[contact_joints].any(axis=0)
-
-
-def body_share(setup, contact_joints: np.ndarray) -> np.ndarray:
-    """``(M,)`` factor on the weight of each mapped joint in the contact solve: 1 on the
-    :func:`leg_chains`, :data:`BODY_SHARE` above them. The body above the legs keeps the
-    plain solve's rotations (:func:`usdmotion.ops.retarget.rotation_terms.contact_prior_share`)
-    and rides on the root, so its positions should not hold the root back from where the
-    planted feet need it: with full weight they pulled the stance ankle millimetres off its
-    point wherever the leg was stretched, and turned small bones (fingers) after the targets."""
-    legs = leg_chains(setup.rig.parents, contact_joints)
-    return np.where(legs[setup.mapped], 1.0, BODY_SHARE)
 
 
 def foot_length_apart(setup, joints: np.ndarray, contact: np.ndarray, planted: np.ndarray, up: int) -> np.ndarray:
@@ -250,25 +193,22 @@ def foot_length_apart(setup, joints: np.ndarray, contact: np.ndarray, planted: n
     return planted
 
 
-def ramp_frames(fps: float) -> int:
-    """Frames over which a contact weight ramps between its swing share and full weight."""
-    return max(1, int(round(RAMP_S * fps)))
 
 
-def ramp(contact: np.ndarray, frames: int) -> np.ndarray:
-    """``(F, C)`` weight share per frame of the contact mask ``contact (F, C)``: 1 during
-    contact, :data:`SWING_SHARE` from ``frames`` frames away from every contact, and in
-    between a smoothstep in log space (``SWING_SHARE ** (1 − s(d))``, ``d`` the distance in
-    frames to the nearest contact frame), so the solution never jumps where a contact begins or ends."""
-    contact = np.asarray(contact, bool)
-    n = contact.shape[0]
-    idx = np.arange(n)[:, None]
-    far = n + frames + 1
-    last = np.maximum.accumulate(np.where(contact, idx, -far), axis=0)
-    nxt = np.minimum.accumulate(np.where(contact, idx, n + far)[::-1], axis=0)[::-1]
-    dist = np.minimum(idx - last, nxt - idx)
-    x = np.clip(1.0 - dist / (frames + 1.0), 0.0, 1.0)
-    return SWING_SHARE ** (1.0 - x * x * (3.0 - 2.0 * x))
+def tips_floor(setup, contact_joints: np.ndarray, floor: float, k: float, up: int, percentile: float = 2.0) -> float:
+    """The floor as the mapped joints below the contact joints (toe tips) see it: the
+    ``percentile`` of their per-frame lowest source height (target units; heights above
+    ``floor`` scaled by ``k`` like the fixed points), or ``floor`` without such joints.
+
+    The contacts' floor is estimated from the heel/ankle/toe joints; a source's toe tips go
+    lower (up to 0.6 units on the CMU walk, 6.5 cm on 86_01), and a floor above them made
+    the result turn every toe up where its tip was "below" it (flips of the toes)."""
+    below = ancestor_matrix(setup.rig.parents)[contact_joints].any(axis=0)
+    tips = np.intersect1d(np.flatnonzero(below), setup.mapped)
+    if tips.size == 0:
+        return floor
+    lowest = np.percentile(setup.targets[:, tips, up].min(axis=1), percentile)
+    return float(floor + k * (lowest - floor))
 
 
 def leg_joints(setup, contact_joints: np.ndarray) -> np.ndarray:
@@ -305,9 +245,3 @@ def _source_positions(setup, source, indices: np.ndarray) -> np.ndarray:
         out[:, c] = setup.targets[:, j]
     return out
 
-
-def moved_joints(setup) -> np.ndarray:
-    """Joints that some optimised rotation or translation moves (the floor term's points)."""
-    sub = ancestor_matrix(setup.rig.parents) | np.eye(setup.rig.n_joints, dtype=bool)
-    moved = sub[setup.rot_joints].any(axis=0) | sub[setup.trans_joints].any(axis=0)
-    return np.flatnonzero(moved)

@@ -37,12 +37,13 @@ from usdmotion.ops.retarget.hierarchy import (Rig, RetargetError, UnitsMismatchE
                                      derive_rig, mapped_chains, rig_from_motion, source_bone_lengths)
 from usdmotion.ops.retarget import quality as retarget_quality
 from usdmotion.ops.retarget import report as retarget_report
-from usdmotion.ops.retarget.contact_terms import FLOOR_WEIGHT, ROOT_SCALES, body_share, contact_terms, moved_joints
+from usdmotion.ops.retarget.contact_terms import ROOT_SCALES, contact_terms
 from usdmotion.ops.retarget.jointmap import JointMap, resolve_map
+from usdmotion.ops.retarget.leg_ik import legs_of, place_legs
 from usdmotion.ops.retarget.losses import frame_losses
-from usdmotion.ops.retarget.problem import CONTACT_ITERATIONS, CONTACT_WARM_ITERATIONS, Problem
-from usdmotion.ops.retarget.aim import aim_init, identity_quats as _identity
-from usdmotion.ops.retarget.rotation_terms import contact_prior_share, smooth_scale
+from usdmotion.ops.retarget.problem import Problem
+from usdmotion.ops.retarget.aim import aim_init, aim_single_points, identity_quats as _identity
+from usdmotion.ops.retarget.rotation_terms import smooth_scale
 from usdmotion.ops.retarget.solve import solve
 from usdmotion.ops.retarget.unmapped import continuous_hemisphere, unmapped_rules
 from usdmotion.progress import Progress
@@ -318,7 +319,7 @@ def _choose_init(setup: Setup, init: str, method: str) -> str:
     return min(losses, key=losses.get)  # one choice for the whole take keeps twists continuous
 
 
-def _problem(setup: Setup, terms=None, smooth: float = 0.0, prior: float = 0.0):
+def _problem(setup: Setup, smooth: float = 0.0, prior: float = 0.0):
     channels = setup.rig.channels
     orders = tuple(rotation_order(channels[j]) if channels is not None and channels[j] else "ZXY"
                    for j in setup.rot_joints)
@@ -326,12 +327,8 @@ def _problem(setup: Setup, terms=None, smooth: float = 0.0, prior: float = 0.0):
     extra = {}
     if smooth > 0:
         extra["smooth"] = smooth * smooth_scale(setup)
-    if prior > 0:  # in the contact solve everything but the leg chains keeps the plain solve
-        share = 1.0 if terms is None else contact_prior_share(setup, terms.joints)
-        extra["prior"] = prior * smooth_scale(setup) * share
-    if terms is not None:
-        extra.update(contact_joints=terms.joints, floor_joints=moved_joints(setup), up=terms.up,
-                     floor_weight=FLOOR_WEIGHT)
+    if prior > 0:
+        extra["prior"] = prior * smooth_scale(setup)
     return Problem(setup.rig.parents, mapped, setup.weights[mapped], setup.rot_joints, setup.trans_joints, orders,
                    **extra)
 
@@ -354,8 +351,8 @@ def retarget(source: Motion, target: Motion | None = None, *, remove=(), add=(),
             automatic otherwise).
         method: ``"lm"`` (default) or ``"adam"`` (the paper's reference).
         iterations: LM's maximum (default 100; it stops once every frame has converged) or
-            Adam's iteration count (default 500). With contacts: the contact phase's maximum
-            (default ``problem.CONTACT_ITERATIONS``, after ``CONTACT_WARM_ITERATIONS`` plain ones).
+            Adam's iteration count (default 500). With contacts the same solve runs, then the
+            legs meet the contacts analytically (:mod:`usdmotion.ops.retarget.leg_ik`).
         lengths: ``"source"`` (step 1: mean source bone lengths) or ``"target"`` (keep).
         directions: ``"auto"``/``"mean"``/``"rest"`` for derived rigs (see module doc).
         scale: ``"units"``, ``"auto"`` or a number (targets from files only).
@@ -415,8 +412,7 @@ def retarget(source: Motion, target: Motion | None = None, *, remove=(), add=(),
     prepared = time.perf_counter()
     q, t, solution = _solve(setup, q0, terms, rot_terms, method, iterations, progress)
     motion = _output_motion(source, setup, q, t)
-    cap = CONTACT_ITERATIONS if terms is not None and iterations is None else iterations
-    report = retarget_report.build(source, setup, motion, q0, init_name, method, cap,
+    report = retarget_report.build(source, setup, motion, q0, init_name, method, iterations,
                                    {"setup": prepared - start, "compile": solution.compile_s, "solve": solution.run_s},
                                    source_path, target_path)
     report["chunks"] = {"frames_per_call": solution.chunk, "calls": solution.calls}
@@ -439,32 +435,24 @@ def _solve(setup: Setup, q0: np.ndarray, terms, rot_terms, method: str, iteratio
     t0 = setup.translations.copy()
     t0[:, setup.anchor] -= centre
     targets = setup.targets[:, setup.mapped] - centre[:, None]
-    problem = _problem(setup, terms, *rot_terms)
-    weights = floor = None
-    if terms is not None:
-        targets = np.concatenate([targets, terms.targets - centre[:, None]], axis=1)
-        mapped_w = problem.weights * body_share(setup, terms.joints)  # the body above the legs rides on the root
-        weights = np.concatenate([np.broadcast_to(mapped_w, (len(q0), len(mapped_w))), terms.weights], axis=1)
-        floor = terms.floor - centre[:, terms.up]
-    if terms is not None:  # warm start: the plain solve, then the contacts move what they must
-        plain = solve(_problem(setup, None, *rot_terms), q0, t0, targets[:, : len(setup.mapped)], method=method,
-                      iterations=CONTACT_WARM_ITERATIONS)
-        solution = solve(problem, plain.q, plain.t, targets, method=method,
-                         iterations=CONTACT_ITERATIONS if iterations is None else iterations,
-                         progress=progress, weights=weights, floor=floor)
-        solution = dataclasses.replace(solution, compile_s=solution.compile_s + plain.compile_s,
-                                       run_s=solution.run_s + plain.run_s,
-                                       iterations=solution.iterations + plain.iterations)
-    else:
-        solution = solve(problem, q0, t0, targets, method=method, iterations=iterations, progress=progress,
-                         weights=weights, floor=floor)
+    problem = _problem(setup, *rot_terms)
+    solution = solve(problem, q0, t0, targets, method=method, iterations=iterations, progress=progress)
     q, t = solution.q, solution.t
     t[:, setup.anchor] += centre
+    if setup.mode == "target" and method == "lm":  # bones moving one point: onto it (see aim_single_points)
+        q = aim_single_points(setup, q, t)
     if terms is None and not problem.smoothing and not problem.anchored:
         # keep, per frame, the better of the initial guess and the float32 solution in float64
         args = (setup.rig.parents, setup.mapped, setup.targets, setup.weights)
         worse = frame_losses(t, q, *args) > frame_losses(setup.translations, q0, *args)
         q[worse], t[worse] = q0[worse], setup.translations[worse]
+    if terms is not None:  # the contact solve: the legs meet the contacts analytically
+        began = time.perf_counter()
+        q, t, _ = place_legs(q, t, setup.rig.parents, setup.anchor, legs_of(
+            setup.rig.parents, terms.joints, terms.target_contacts.parts, setup.offsets, setup.top),
+            terms.planted, terms.target_contacts.contact, terms.level, terms.up, terms.target_contacts.fps,
+            terms.floor)
+        solution = dataclasses.replace(solution, run_s=solution.run_s + time.perf_counter() - began)
     q, t = unmapped_rules(setup, q, t, terms.floor if terms is not None else floor_height)
     return continuous_hemisphere(q), t, solution
 

@@ -31,18 +31,6 @@ LM_ITERATIONS = 100
 LM_RTOL = 1e-5
 LM_RTOL_TOTAL = 1e-6
 LM_ATOL = 1e-12  # ... or when its loss fell below this fraction of where it started
-#: The contact-aware solve: the plain solve (positions only, at most CONTACT_WARM_ITERATIONS,
-#: it converges in ~6) as warm start and as the anchor of the pull towards the initial
-#: guess, then at most CONTACT_ITERATIONS iterations with the contact and floor terms
-#: (``--iterations`` sets that cap). Those stiff terms (weights 100–1000, the floor
-#: one-sided) converge slowly: measured (docs/retarget.md, *Speed of the contact solve*)
-#: CMU walk → Bandai 3 + 6 iterations: skate 0.57 cm/s, RMS 5.01 cm; 3 + 100: 0.52, 4.97;
-#: the walk onto legs 1.2× (root scaled): 3 + 6: 3.1 cm/s, 3 + 12: 1.18, 3 + 100: 0.77;
-#: a 3-iteration warm start broke the no-flip rule on the 128-frame walk onto legs 1.2×
-#: (tests/test_retarget_contacts.py) — so both caps stay at LM_ITERATIONS (each phase
-#: stops early once every frame has converged).
-CONTACT_WARM_ITERATIONS = LM_ITERATIONS
-CONTACT_ITERATIONS = LM_ITERATIONS
 ADAM_ITERATIONS = 500
 
 

@@ -10,7 +10,6 @@ from __future__ import annotations
 import numpy as np
 
 from usdmotion.kinematics import fk_arrays
-from usdmotion.ops.retarget.contact_terms import leg_chains
 from usdmotion.ops.retarget.hierarchy import ancestor_matrix
 from usdmotion.ops.retarget.problem import Problem
 from usdmotion.rotations import quat_log, quat_mul, quat_normalize
@@ -70,24 +69,3 @@ def smooth_scale(setup) -> np.ndarray:
     anc = ancestor_matrix(setup.rig.parents)[setup.rot_joints][:, setup.mapped]  # (R, M)
     d2 = np.sum((rest[setup.mapped][None] - rest[setup.rot_joints][:, None]) ** 2, axis=-1)
     return np.sum(anc * d2 * setup.weights[setup.mapped][None], axis=1)
-
-
-#: In the contact solve (which starts from the plain solve), the pull towards the initial
-#: guess of every rotation joint outside the leg chains is this many times the default:
-#: the body above the legs keeps the plain solve's rotations (it moves with the root),
-#: instead of absorbing the legs' corrections in steps of several degrees per frame.
-HOLD_SHARE = 10.0
-#: ... and never weaker (in units² per radian²) than this share of the largest joint's pull:
-#: a short bone (a finger) weighs a radian by its few mm of movement, so it turned by
-#: degrees per frame after its target whenever the root moved under it.
-HOLD_FLOOR = 0.1
-
-
-def contact_prior_share(setup, contact_joints: np.ndarray) -> np.ndarray:
-    """``(R,)`` factor on the pull towards the initial guess per rotation joint of the contact
-    solve: 1 on the :func:`leg_chains` (below the top mapped joint), :data:`HOLD_SHARE` elsewhere
-    (at least :data:`HOLD_FLOOR` of the largest joint's :func:`smooth_scale`)."""
-    legs = leg_chains(setup.rig.parents, contact_joints) & ancestor_matrix(setup.rig.parents)[setup.top]
-    scale = smooth_scale(setup)
-    small = np.maximum(1.0, HOLD_FLOOR * scale.max() / np.maximum(scale, 1e-30))  # short bones: held as longer ones
-    return np.where(legs[setup.rot_joints], 1.0, HOLD_SHARE * small)

@@ -61,6 +61,15 @@ const player = new Player($('canvas'), frame => {
   if (segments) segments.setFrame(frame);
   if (!player.playing) writeUrl();
 });
+// a linked page shows its view alone until the take's first frame is on the screen (index.html): the
+// canvas is the only content, so the first contentful paint is that frame's
+player.onFirstFrame = () => {
+  player.onFirstFrame = null;
+  new PerformanceObserver((list, observer) => {
+    if (list.getEntriesByName('first-contentful-paint').length) { observer.disconnect(); window.early.reveal(); }
+  }).observe({type: 'paint', buffered: true});
+};
+player.holdEmpty = !!state.take;  // and draws nothing before its take: the first frame drawn is the take's
 player.onStop = () => { $('play').textContent = '▶'; writeUrl(); };
 player.onOrbit = () => { player.cameraMode = 'orbit'; $('camera').value = 'orbit'; };
 player.onCamera = () => { clearTimeout(player.urlTimer); player.urlTimer = setTimeout(writeUrl, 300); };
@@ -106,12 +115,24 @@ async function openTake(id, fresh) {
   try {
     take = await loadTake(id);
   } catch (e) {
-    $('view-message').textContent = `${id}: ${e.message}`;
-    $('view-message').className = 'error-text';
+    const name = id.split('/').slice(1).join('/') || id;
+    const line = e.message.includes(name) ? e.message : `${name}: ${e.message}`;
+    if (player.figure) {  // the take shown before stays, with the line under it
+      $('view-message').textContent = line;
+      $('view-message').className = 'error-text';
+    } else {  // nothing to play (a link to a take that is missing or fails to read): the line alone
+      $('view-message').textContent = '';
+      $('player').hidden = true;
+      $('welcome').hidden = false;
+      $('open-error').textContent = line;
+    }
     if (segments) segments.setTake(null);
+    player.holdEmpty = false;
+    window.early.reveal();
     takeShown();
     return;
   }
+  $('open-error').textContent = '';
   $('view-message').className = '';
   $('take-name').textContent = id.split('/').slice(1).join('/');
   const figure = player.setTake(take);
@@ -324,11 +345,11 @@ async function start() {
   // them, a warm-up would only draw one frame more (the compare ghost's are compiled once it is drawn)
   if (!state.take) player.warmUp();
   const opening = state.take ? openTake(state.take, false) : null;
-  await library.load();  // the list of takes, at once
-  if (opening) {  // a linked take is drawn before the library is read and the panels are loaded
-    await Promise.race([shown, opening]);
+  if (opening) {  // a linked take is drawn before the library is listed (hidden until then: index.html)
+    await Promise.race([shown, opening]);  // and read, and before the panels are loaded
     await new Promise(resolve => requestAnimationFrame(() => setTimeout(resolve)));  // after the draw
   }
+  await library.load();  // the list of takes, at once
   const panels = loadPanels();
   await library.fill();
   fillTakeLists();

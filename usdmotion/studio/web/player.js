@@ -40,6 +40,8 @@ export class Player {
     this.playLog = [];      // [time ms, frame] of each frame drawn while playing (benchmarks read it)
     this.firstDrawnAt = this.bodyDrawnAt = null;  // when a take, then its body, were first drawn
     this.firstPixelsAt = this.bodyPixelsAt = null;  // ... and their pixels were there (window.studioTimings)
+    this.jointsCompiled = false;  // the joint spheres' shader program (see compileJoints)
+    this.holdEmpty = false;  // true: nothing is drawn before a take is set (a linked page: main.js)
     this.dirty = true;
     new ResizeObserver(() => this.resize()).observe(canvas);
     this.resize();
@@ -62,7 +64,19 @@ export class Player {
       this.scene.remove(figure.group);
       figure.dispose();
     }
+    if (opacities.includes(1)) this.jointsCompiled = true;
     this.dirty = true;  // the next frame is drawn without it
+  }
+
+  /** The joints' spheres have a lit material, a costly shader program in software WebGL: a linked
+   *  take's first frame is drawn without them (the stick figure's lines and the floor share one
+   *  program), and they are compiled after it (in parallel where KHR_parallel_shader_compile is) and
+   *  shown when ready. */
+  compileJoints() {
+    this.jointsCompiled = true;
+    const joints = this.figure.joints;
+    this.renderer.compileAsync(joints, this.camera, this.scene)
+      .then(() => { joints.visible = true; this.dirty = true; });
   }
 
   resize() {
@@ -84,6 +98,7 @@ export class Player {
     this.clearGhost();
     this.clearStrobe();
     this.figure = new Figure(take);
+    this.figure.joints.visible = !!this.jointsCompiled;  // see compileJoints
     this.scene.add(this.figure.group);
     this.firstDrawnAt = this.bodyDrawnAt = this.firstPixelsAt = this.bodyPixelsAt = null;
     this.range = null;
@@ -193,14 +208,15 @@ export class Player {
       }
       if (f !== this.frame) this.setFrame(f);
     }
-    if (this.dirty) {
+    if (this.dirty && (this.figure || !this.holdEmpty)) {
       if (this.split && this.ghost) this.renderSplit();
       else this.renderer.render(this.scene, this.camera);
       this.rendered++;
       this.dirty = false;
       const t = performance.now();  // for benchmarks: when the take, then its body, were first drawn
       const firstBody = this.figure && this.figure.body && this.bodyDrawnAt === null;
-      if (this.figure && this.firstDrawnAt === null) this.firstDrawnAt = t;
+      const firstFrame = this.figure && this.firstDrawnAt === null;
+      if (firstFrame) this.firstDrawnAt = t;
       if (firstBody) this.bodyDrawnAt = t;
       // benchmarks set window.studioTimings: also when those frames' pixels were there (the GPU
       // process compiles and draws after render() returns; reading one pixel waits for it)
@@ -210,6 +226,8 @@ export class Player {
         if (this.firstPixelsAt === null) this.firstPixelsAt = performance.now();
         if (firstBody) this.bodyPixelsAt = performance.now();
       }
+      if (firstFrame && !this.jointsCompiled) this.compileJoints();
+      if (firstFrame && this.onFirstFrame) this.onFirstFrame();
       if (this.playing) this.playLog.push([t, this.frame]);
       if (this.playLog.length > 4000) this.playLog.splice(0, 2000);
     }

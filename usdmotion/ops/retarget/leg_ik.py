@@ -1,0 +1,328 @@
+"""Planted feet by analytic leg IK: the last step of the contact-aware solve.
+
+The position-matching solve (LM, all frames) gives a body whose stance feet slide; this
+module makes each leg meet its contacts exactly, as production retargeters do, over all
+frames at once in float64 NumPy (no per-frame loop):
+
+1. **Where each foot must be** (:func:`foot_targets`), per leg (hip → knee → ankle → toe):
+   during an ankle contact the ankle sits on the contact's fixed point
+   (:class:`~usdmotion.ops.retarget.contact_terms.ContactTerms` ``planted``); during a
+   toe-only contact (after heel-off) the foot pivots about the toe's fixed point with the
+   solved foot's direction, corrected towards the flat foot's at the heel's side and
+   blended out by the contact's other end (so the ankle never jumps); between contacts
+   the joint follows the solve plus an offset blended linearly from one contact to the next
+   (footskate clean-up, Kovar et al. 2002). No target lies below the joint's planted level.
+2. **Reach**: where a foot planted flat (ankle and toe down) lies beyond the leg's length
+   from the solved hip, the root comes down (:func:`root_drop`) by the least amount that
+   reaches it, smoothed over :data:`DROP_WINDOW_S` (a running maximum, then a moving mean
+   of it: never less than needed, never a step). A held ankle target still out of reach
+   from the lowered hip is raised (only the ankle down: straight up; with the toe down:
+   by turning the foot about the toe's point — the heel lifts).
+3. **Two-bone IK** (:func:`place_legs`): the knee stays in the plane of the solved leg (its
+   bend direction, plus a little of the foot's heading where the leg is straight), the hip
+   and knee turn by the shortest rotations that put knee and ankle where the triangle
+   says; the foot keeps its solved world rotation turned by the shortest rotation that
+   aims it at the toe's target. Every other joint keeps the solve's rotation.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from usdmotion.kinematics import fk_arrays
+from usdmotion.rotations import quat_conjugate, quat_mul, quat_normalize, quat_rotate
+
+#: Seconds over which the root's drop is smoothed (see :func:`root_drop`).
+DROP_WINDOW_S = 0.15
+#: A leg is never stretched beyond this share of its length (a fully straight knee has no
+#: bend direction to keep).
+REACH = 0.9995
+#: Weight of the foot's heading in the knee's bend direction (per unit of thigh length):
+#: it decides the bend only where the solved leg is (nearly) straight.
+HEADING_SHARE = 0.02
+
+
+@dataclass(frozen=True)
+class Leg:
+    """One leg of the target rig: joints and the columns of its contact joints.
+
+    Attributes:
+        hip, knee, ankle: target joints (the ankle's parent and grandparent above it).
+        toe: target joint below the ankle with a toe contact, or -1.
+        ankle_c, toe_c: their columns in the contact arrays (``toe_c`` -1 without a toe).
+    """
+
+    hip: int
+    knee: int
+    ankle: int
+    toe: int
+    ankle_c: int
+    toe_c: int
+
+
+def legs_of(parents: np.ndarray, joints: np.ndarray, parts, offsets: np.ndarray, top: int) -> list[Leg]:
+    """The legs whose ankle contact joint has a parent and grandparent below ``top`` with
+    bones of non-zero length (others are left to the solve)."""
+    index = {p: c for c, p in enumerate(parts)}
+    legs = []
+    for c, part in enumerate(parts):
+        side, _, kind = part.partition("_")
+        if kind != "ankle":
+            continue
+        ankle = int(joints[c])
+        knee = int(parents[ankle])
+        hip = int(parents[knee]) if knee >= 0 else -1
+        if hip < 0 or not _below(parents, hip, top) or min(np.linalg.norm(offsets[[ankle, knee]], axis=1)) <= 0:
+            continue
+        toe_c = index.get(f"{side}_toe", -1)
+        toe = int(joints[toe_c]) if toe_c >= 0 else -1
+        if toe >= 0 and not _below(parents, toe, ankle):
+            toe, toe_c = -1, -1
+        legs.append(Leg(hip, knee, ankle, toe, c, toe_c))
+    return legs
+
+
+def _below(parents: np.ndarray, joint: int, above: int) -> bool:
+    j = int(parents[joint])
+    while j >= 0:
+        if j == above:
+            return True
+        j = int(parents[j])
+    return False
+
+
+def _interp_rows(frames: np.ndarray, known: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """``(F, 3)`` linear interpolation over frames of ``values (K, 3)`` known at ``known (K,)``
+    (held constant beyond the ends; zeros when nothing is known)."""
+    if known.size == 0:
+        return np.zeros((frames.size, 3))
+    return np.stack([np.interp(frames, known, values[:, i]) for i in range(3)], axis=1)
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-300)
+
+
+def foot_targets(world_p: np.ndarray, leg: Leg, planted: np.ndarray, contact: np.ndarray, level: np.ndarray,
+                 up: int, reach: float) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+    """``(ankle target (F, 3), toe target (F, 3) or None, held (F,))`` of one leg (see the
+    module docstring); ``held``: the frames on which the ankle target is a contact's.
+
+    Where a held ankle target lies beyond the leg's reach from the solved hip, it is raised:
+    with only the ankle planted straight up (the horizontal position holds), with the toe
+    planted too by turning the foot about the toe's point (the heel lifts: the ankle then
+    moves horizontally by about ``rise² / (2 L)``, 0.3 mm for a rise of 1 cm on a 15 cm
+    foot), during a toe-only contact likewise (the heel rises further).
+
+    Args:
+        world_p: ``(F, J, 3)`` world positions of the solve.
+        planted: ``(F, C, 3)`` each contact's fixed point (valid on contact frames).
+        contact: ``(F, C)`` bool.
+        level: ``(C,)`` planted level of each contact joint on the up axis.
+        reach: hip-to-ankle length of the leg (target units).
+    """
+    frames = np.arange(world_p.shape[0])
+    ankle, hip, limit = world_p[:, leg.ankle], world_p[:, leg.hip], REACH * reach
+    on_a = contact[:, leg.ankle_c]
+    on_t = contact[:, leg.toe_c] if leg.toe >= 0 else np.zeros_like(on_a)
+    point = planted[:, leg.ankle_c]
+    lifted = _lift_to_reach(point, hip, limit, up)
+    if leg.toe >= 0:  # a flat foot turns about its toe: the ankle moves by rise²/(2 L) horizontally
+        lifted = np.where(on_t[:, None], _turn_to_reach(point, planted[:, leg.toe_c], hip, limit), lifted)
+    desired = np.where(on_a[:, None], lifted, ankle)
+    held = on_a.copy()
+    toe_target = None
+    if leg.toe >= 0:
+        toe = world_p[:, leg.toe]
+        foot = ankle - toe  # (F, 3) the solved foot, toe → ankle; its length is the rig's
+        # toe-only frames: the foot pivots about the toe's point; its direction is the solve's
+        # plus a correction known on frames with both contacts (the flat foot's) and 0 at a toe
+        # contact's ends without the ankle, interpolated in between
+        both = on_a & on_t
+        edges = np.zeros_like(on_t)
+        edges[1:] |= on_t[1:] & ~on_t[:-1]
+        edges[:-1] |= on_t[:-1] & ~on_t[1:]
+        edges[[0, -1]] |= on_t[[0, -1]]
+        edges &= ~on_a
+        known = np.flatnonzero(both | edges)
+        flat = lifted - planted[:, leg.toe_c]
+        correction = np.where(both[:, None], flat - foot, 0.0)[known]
+        pivot = _unit(foot + _interp_rows(frames, known, correction)) * np.linalg.norm(foot, axis=-1, keepdims=True)
+        only_toe = on_t & ~on_a
+        pivoted = _turn_to_reach(planted[:, leg.toe_c] + pivot, planted[:, leg.toe_c], hip, limit)
+        desired = np.where(only_toe[:, None], pivoted, desired)
+        held |= only_toe
+        toe_target = _follow(frames, toe, np.where(on_t[:, None], planted[:, leg.toe_c], toe), on_t)
+        toe_target[:, up] = np.maximum(toe_target[:, up], level[leg.toe_c])
+    ankle_target = _follow(frames, ankle, desired, held)
+    ankle_target[:, up] = np.maximum(ankle_target[:, up], level[leg.ankle_c])
+    return ankle_target, toe_target, held
+
+
+def _lift_to_reach(point: np.ndarray, hip: np.ndarray, limit: float, up: int) -> np.ndarray:
+    """``point (F, 3)`` raised along the up axis onto the ball of radius ``limit`` about
+    ``hip (F, 3)`` where it lies outside it (and horizontally within reach)."""
+    gap = point - hip
+    horizontal2 = np.sum(gap ** 2, axis=-1) - gap[:, up] ** 2
+    lift = np.where((np.sum(gap ** 2, axis=-1) > limit ** 2) & (horizontal2 < limit ** 2) & (gap[:, up] < 0),
+                    -np.sqrt(np.maximum(limit ** 2 - horizontal2, 0.0)) - gap[:, up], 0.0)
+    out = point.copy()
+    out[:, up] += np.maximum(lift, 0.0)
+    return out
+
+
+def _turn_to_reach(point: np.ndarray, pivot: np.ndarray, hip: np.ndarray, limit: float) -> np.ndarray:
+    """``point (F, 3)``, turned about ``pivot (F, 3)`` (radius kept) onto the ball of radius
+    ``limit`` about ``hip`` where it lies outside it: the nearest point of the circle where
+    the two spheres meet (towards the hip where they do not)."""
+    radius = np.linalg.norm(point - pivot, axis=-1, keepdims=True)
+    axis = hip - pivot
+    dist = np.linalg.norm(axis, axis=-1, keepdims=True)
+    n = _unit(axis)
+    along = np.clip((radius ** 2 - limit ** 2 + dist ** 2) / (2 * np.maximum(dist, 1e-300)), -radius, radius)
+    centre = pivot + along * n
+    off = (point - centre) - np.sum((point - centre) * n, -1, keepdims=True) * n
+    ring = centre + _unit(off) * np.sqrt(np.maximum(radius ** 2 - along ** 2, 0.0))
+    outside = np.linalg.norm(point - hip, axis=-1) > limit
+    return np.where(outside[:, None], ring, point)
+
+
+def _follow(frames: np.ndarray, solved: np.ndarray, desired: np.ndarray, held: np.ndarray) -> np.ndarray:
+    """``desired`` on ``held`` frames, elsewhere ``solved`` plus the offset blended linearly
+    between the nearest held frames (constant beyond the first and last)."""
+    known = np.flatnonzero(held)
+    return solved + _interp_rows(frames, known, (desired - solved)[known])
+
+
+def root_drop(hips: np.ndarray, reach: np.ndarray, ankle_targets: np.ndarray, up: int, fps: float) -> np.ndarray:
+    """``(F,)`` how far (target units, ≥ 0) the root must come down so every leg reaches its
+    ankle target: per frame the largest over legs of the least drop of the hip ``hips
+    (F, L, 3)`` that brings ``ankle_targets (F, L, 3)`` within ``REACH · reach (L,)``, then
+    a running maximum and a moving mean of it over :data:`DROP_WINDOW_S` (each mean covers
+    only maxima that include its frame, so it never falls below that frame's need)."""
+    gap = hips - ankle_targets
+    height = gap[..., up]
+    horizontal2 = np.sum(gap ** 2, axis=-1) - height ** 2
+    limit = (REACH * reach)[None] ** 2
+    need = np.where(horizontal2 < limit, height - np.sqrt(np.maximum(limit - horizontal2, 0.0)), height)
+    need = np.maximum(need, 0.0).max(axis=1) if need.size else np.zeros(hips.shape[0])
+    if not need.any():
+        return need
+    half = max(1, int(round(DROP_WINDOW_S * fps / 2)))
+    padded = np.pad(need, half, mode="edge")
+    windows = np.lib.stride_tricks.sliding_window_view(padded, 2 * half + 1)
+    peak = np.pad(windows.max(axis=1), half, mode="edge")
+    return np.lib.stride_tricks.sliding_window_view(peak, 2 * half + 1).mean(axis=1)
+
+
+def _swing(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``(..., 4)`` the shortest rotations taking directions ``a`` to ``b`` ``(..., 3)``."""
+    a, b = _unit(a), _unit(b)
+    q = np.concatenate([1.0 + np.sum(a * b, axis=-1, keepdims=True), np.cross(a, b)], axis=-1)
+    return quat_normalize(q)
+
+
+def place_legs(q: np.ndarray, t: np.ndarray, parents: np.ndarray, anchor: int, legs: list[Leg],
+               planted: np.ndarray, contact: np.ndarray, level: np.ndarray, up: int, fps: float,
+               floor: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(q, t, drop (F,))``: the solve's local rotations ``q (F, J, 4)`` and translations
+    ``t (F, J, 3)`` (anchor: world-placed) with every leg on its :func:`foot_targets`, the root
+    lowered by ``drop`` where a leg could not reach, and the joints below each toe (its
+    End Site) turned up about the toe onto the ``floor`` where they were below it (see the
+    module docstring)."""
+    q, t = q.copy(), t.copy()
+    world_q, world_p = fk_arrays(q, t, parents)
+    if not legs:
+        return q, t, np.zeros(q.shape[0])
+    reach = np.array([np.linalg.norm(world_p[:, leg.knee] - world_p[:, leg.hip], axis=-1).mean()
+                      + np.linalg.norm(world_p[:, leg.ankle] - world_p[:, leg.knee], axis=-1).mean() for leg in legs])
+    # the root comes down where a foot planted flat (ankle and toe) lies out of the leg's reach;
+    # then the targets are found from the lowered hips (heels lifted, feet turned where needed)
+    flat = np.stack([contact[:, leg.ankle_c] & (contact[:, leg.toe_c] if leg.toe >= 0 else True) for leg in legs], 1)
+    hips = world_p[:, [leg.hip for leg in legs]]
+    points = planted[:, [leg.ankle_c for leg in legs]]
+    drop = root_drop(np.where(flat[..., None], hips, points), reach, points, up, fps)
+    if drop.max() > 0:
+        shift = np.zeros((q.shape[0], 3))
+        shift[:, up] = -drop
+        parent = parents[anchor]
+        local = shift if parent < 0 else quat_rotate(quat_conjugate(world_q[:, parent]), shift)
+        t[:, anchor] += local
+        world_p = world_p + shift[:, None]
+    targets = [foot_targets(world_p, leg, planted, contact, level, up, r) for leg, r in zip(legs, reach)]
+    for leg, (ankle_target, toe_target, _) in zip(legs, targets):
+        q = _two_bone(q, world_q, world_p, parents, leg, ankle_target, toe_target, up,
+                      level[leg.toe_c] if leg.toe >= 0 else None)
+    return _toes_above_floor(q, t, parents, legs, floor, up), t, drop
+
+
+def _toes_above_floor(q, t, parents, legs: list[Leg], floor: float, up: int) -> np.ndarray:
+    """``q`` with each toe joint (an ankle without one) turned so that no joint below it is
+    under ``floor``: such a joint is put on the floor, turned about the toe in the vertical
+    plane of its bone."""
+    world_q, world_p = fk_arrays(q, t, parents)
+    for leg in legs:
+        pivot = leg.toe if leg.toe >= 0 else leg.ankle  # without a toe: the foot's own End Site
+        for d in (j for j in range(len(parents)) if _below(parents, j, pivot)):
+            bone = world_p[:, d] - world_p[:, pivot]
+            length = np.linalg.norm(bone, axis=-1)
+            low = (world_p[:, d, up] < floor) & (length > 0)
+            if not low.any():
+                continue
+            heading = world_p[:, leg.toe] - world_p[:, leg.ankle] if leg.toe >= 0 else bone.copy()
+            heading[:, up] = 0.0
+            flat = bone.copy()  # the bone's own heading, and a little of the foot's where it points down
+            flat[:, up] = 0.0
+            flat = flat + HEADING_SHARE * length[:, None] * _unit(heading)
+            sin = np.clip((floor - world_p[:, pivot, up]) / np.maximum(length, 1e-300), -1.0, 1.0)
+            lifted = _unit(flat) * np.sqrt(1.0 - sin ** 2)[:, None] * length[:, None]
+            lifted[:, up] = sin * length
+            turn = np.where(low[:, None], _swing(bone, lifted), [1.0, 0.0, 0.0, 0.0])
+            w_pivot = quat_mul(turn, world_q[:, pivot])
+            q[:, pivot] = quat_mul(quat_conjugate(world_q[:, parents[pivot]]), w_pivot)
+            world_q, world_p = fk_arrays(q, t, parents)
+    return q
+
+
+def _two_bone(q, world_q, world_p, parents, leg: Leg, ankle_target, toe_target, up, toe_level):
+    """Local rotations of hip, knee and ankle of one leg placed on its targets (see :func:`place_legs`)."""
+    hip, knee, ankle = world_p[:, leg.hip], world_p[:, leg.knee], world_p[:, leg.ankle]
+    a = np.linalg.norm(knee - hip, axis=-1, keepdims=True)
+    b = np.linalg.norm(ankle - knee, axis=-1, keepdims=True)
+    to_target = ankle_target - hip
+    d = np.clip(np.linalg.norm(to_target, axis=-1, keepdims=True), np.abs(a - b) + 1e-9 * (a + b), REACH * (a + b))
+    u = _unit(to_target)
+    # the knee's bend direction: the solved knee off the hip → ankle line, plus a little of the
+    # foot's heading (decides only where the solved leg is straight)
+    along = _unit(ankle - hip)
+    bend = (knee - hip) - np.sum((knee - hip) * along, -1, keepdims=True) * along
+    heading = world_p[:, leg.toe] - ankle if leg.toe >= 0 else np.zeros_like(ankle)
+    heading[:, up] = 0.0
+    bend = bend + HEADING_SHARE * a * _unit(heading)
+    v = _unit(bend - np.sum(bend * u, -1, keepdims=True) * u)
+    cos = np.clip((a ** 2 + d ** 2 - b ** 2) / (2 * a * d), -1.0, 1.0)
+    new_knee = hip + a * (cos * u + np.sqrt(1.0 - cos ** 2) * v)
+    new_ankle = hip + d * u
+    turn_hip = _swing(knee - hip, new_knee - hip)
+    w_hip = quat_mul(turn_hip, world_q[:, leg.hip])
+    turn_knee = quat_mul(_swing(quat_rotate(turn_hip, ankle - knee), new_ankle - new_knee), turn_hip)
+    w_knee = quat_mul(turn_knee, world_q[:, leg.knee])
+    w_ankle = world_q[:, leg.ankle]  # the foot keeps its solved world rotation ...
+    if toe_target is not None:  # ... turned to aim at the toe's target, the toe not below its level
+        foot = world_p[:, leg.toe] - ankle
+        length = np.linalg.norm(foot, axis=-1, keepdims=True)
+        aim = _unit(toe_target - new_ankle) * length
+        rise = np.maximum(aim[:, up], np.maximum(toe_level - new_ankle[:, up], -length[:, 0]))
+        flat = aim.copy()
+        flat[:, up] = 0.0
+        aim = _unit(flat) * np.sqrt(np.maximum(length ** 2 - rise[:, None] ** 2, 0.0))
+        aim[:, up] = rise
+        w_ankle = quat_mul(_swing(foot, aim), w_ankle)
+    parent = parents[leg.hip]
+    w_parent = world_q[:, parent] if parent >= 0 else np.broadcast_to([1.0, 0, 0, 0], w_hip.shape)
+    q[:, leg.hip] = quat_mul(quat_conjugate(w_parent), w_hip)
+    q[:, leg.knee] = quat_mul(quat_conjugate(w_hip), w_knee)
+    q[:, leg.ankle] = quat_mul(quat_conjugate(w_knee), w_ankle)
+    return q
