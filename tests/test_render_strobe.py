@@ -61,3 +61,17 @@ def test_strobe_to_a_video_name_is_refused(shared_file, tmp_path, capsys):
     code = main(["render", str(shared_file(WALK)), str(tmp_path / "still.mp4"), "--units", "asf", "--strobe", "3"])
     assert code == 2 and "a stroboscope still is one image" in capsys.readouterr().err
     assert not any(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("extra, named", [
+    (["--trace", "LeftFoot"], "--trace"),
+    (["--style", "stick", "--angle", "knee_left"], "--angle, --style"),
+])
+def test_strobe_refuses_options_it_does_not_draw(shared_file, tmp_path, capsys, extra, named):
+    """A stroboscope still draws bodies only: options it would drop are refused, never ignored."""
+    code = main(["render", str(shared_file(WALK)), str(tmp_path / "still.png"), "--units", "asf", "--size",
+                 "160x120", "--strobe", "3", *extra])
+    err = capsys.readouterr().err
+    assert code == 2 and err.startswith("usdmotion: error: ") and len(err.strip().splitlines()) == 1
+    assert f"leave out {named}" in err
+    assert not any(tmp_path.iterdir())

@@ -78,6 +78,10 @@ def render(
 
         if other is not None:
             raise ValueError("--strobe draws one take: leave out --compare")
+        unused = [name for name, given in (("--trace", trace), ("--angle", angle), ("--panel", panel),
+                                           ("--layout", layout), ("--style", style != "body")) if given]
+        if unused:
+            raise ValueError(f"--strobe draws the body's poses only: leave out {', '.join(unused)}")
         shown = render_strobe(motion, output, options, strobe, strobe_every)
         typer.echo(f"wrote {output}: {len(shown)} poses, frames {shown[0]}-{shown[-1]}, {width}x{height}")
         return
