@@ -54,3 +54,14 @@ def test_ctrl_c_during_start_up_is_one_line_and_exit_130():
         if during_imports >= 2:
             break
     assert during_imports >= 1  # at least one interrupt arrived while the CLI was importing
+
+
+def test_png_still_ends_without_library_diagnostics(tmp_path):
+    """A successful command that wrote PNGs (OpenImageIO) ends with its one line on stdout and
+    nothing on stderr: no binding's "leaked instance" report from the interpreter's exit."""
+    still = tmp_path / "strobe.png"
+    done = subprocess.run([str(USDMOTION), "render", str(WALK), str(still), "--units", "asf", "--size", "320x180",
+                           "--strobe", "3", "--frames", "100:200"], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.startswith(f"wrote {still}") and still.stat().st_size > 0
+    assert done.stderr == ""

@@ -15,7 +15,6 @@ are imported at the top.
 from __future__ import annotations
 
 import atexit
-import gc
 import importlib
 import os
 import pkgutil
@@ -178,10 +177,9 @@ def run() -> None:
         os._exit(code)
     if code == 0 and not atexit._ncallbacks() and threading.active_count() == 1 and _flushed():
         os._exit(0)
-    # The process ends here: the interpreter's last garbage collection need not walk every
-    # object the imports made (pxr, NumPy, typer): 0.035 s of CPU time of every command
-    # (benchmarks/startup.py). Exit still runs atexit handlers and flushes the streams.
-    gc.freeze()
+    # No gc.freeze() here: frozen objects escape the interpreter's last collection, and
+    # OpenImageIO's nanobind bindings then print hundreds of "leaked instance" lines on a
+    # successful command (a PNG still or sequence).
     sys.exit(code)
 
 
