@@ -120,10 +120,8 @@ def _interleave(a: np.ndarray, b: np.ndarray, na: int, nb: int) -> np.ndarray:
 
 
 def _peak(values: np.ndarray, kin: Kinematics) -> dict:
-    if values.size == 0 or not np.any(np.isfinite(values)):
-        return {"value": None, "frame": None, "time": None}
-    i = int(np.nanargmax(values))
-    return {"value": round(float(values[i]), 6), "frame": int(kin.frames[i]), "time": round(float(kin.time[i]), 6)}
+    """:func:`_peaks` of one series ``(F,)``."""
+    return _peaks(np.asarray(values)[None], kin)[0]
 
 
 def _peaks(values: np.ndarray, kin: Kinematics) -> list[dict]:
@@ -141,8 +139,8 @@ def _peaks(values: np.ndarray, kin: Kinematics) -> list[dict]:
 
 
 def _range(values: np.ndarray) -> dict:
-    return {"min": round(float(np.min(values)), 4), "max": round(float(np.max(values)), 4),
-            "range": round(float(np.ptp(values)), 4)}
+    """:func:`_ranges` of one series ``(F,)``."""
+    return _ranges(np.asarray(values)[None])[0]
 
 
 def _ranges(values: np.ndarray) -> list[dict]:
@@ -179,8 +177,8 @@ def joint_summaries(kin: Kinematics, joints: list[int]) -> list[dict]:
     idx = np.asarray(joints, dtype=np.intp)
     speed = _row_norms(kin.velocities[:, idx])                                  # (J, F)
     path = _row_norms(np.diff(kin.positions[:, idx], axis=0)).sum(axis=1)      # (J,)
-    peaks = {key: _peaks(_row_norms(vectors[:, idx]), kin) for key, vectors in (
-        ("peak_speed", kin.velocities), ("peak_acceleration", kin.accelerations), ("peak_angular_speed", kin.omega))}
+    peaks = {"peak_speed": _peaks(speed, kin)} | {key: _peaks(_row_norms(vectors[:, idx]), kin) for key, vectors in (
+        ("peak_acceleration", kin.accelerations), ("peak_angular_speed", kin.omega))}
     out = [{"peak_speed": s, "mean_speed": round(m, 6), "path_length": round(p, 6), "peak_acceleration": a,
             "peak_angular_speed": w}
            for s, m, p, a, w in zip(peaks["peak_speed"], speed.mean(axis=1).tolist(), path.tolist(),
