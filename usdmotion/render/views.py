@@ -133,8 +133,10 @@ class Views:
         pyrender = import_pyrender()
         self.plan, self.options = plan, options
         self.side = other is not None and options.compare_mode == "side"
-        root = to_render_space(fk_arrays(motion.rotations[plan.frames], local_translations(motion)[plan.frames],
-                                         motion.parents)[1][:, 0], motion.meters_per_unit, motion.up_axis)
+        # the main take's joints (F, J, 3) in metres, render space: framing, grid, traces, angles
+        fk = fk_arrays(motion.rotations[plan.frames], local_translations(motion)[plan.frames], motion.parents)
+        self.frame_joints = to_render_space(fk[1], motion.meters_per_unit, motion.up_axis)
+        root = self.frame_joints[:, 0]
         self.actors = [Actor(motion, plan.frames, options.style, options.body_resolution, ghost=False,
                              body=options.body, keep=self._detail(motion, root))]
         if other is not None:
@@ -199,8 +201,7 @@ class Views:
         """The :class:`~usdmotion.render.angles.AngleOverlay` of ``--angle`` on the main view."""
         plan = self.plan
         specs = [parse_angle(motion, text) for text in self.options.angles]
-        joints = to_render_space(fk_arrays(motion.rotations[plan.frames], self.actors[0].local_t[plan.frames],
-                                           motion.parents)[1], motion.meters_per_unit, motion.up_axis)
+        joints = self.frame_joints
         values = angle_values(specs, joints, np.array([0.0, 1.0, 0.0]))  # bends: invariant to units and axes
         index = np.array([s.joints for s in specs])  # (K, 3); -1 (trunk's third) is replaced when drawn
         points = project_frames(joints[:, index.reshape(-1)], plan.camera.poses, plan.camera.yfov, *plan.panel)
@@ -218,8 +219,7 @@ class Views:
         plan, options = self.plan, self.options
         main = self.actors[0]
         main.prepare(np.arange(min(len(plan.frames), 1)))
-        joints = to_render_space(fk_arrays(motion.rotations[plan.frames], main.local_t[plan.frames],
-                                           motion.parents)[1], motion.meters_per_unit, motion.up_axis)
+        joints = self.frame_joints
         height = float(np.ptp(joints[..., 1])) or 1.0
         forward = forward_direction(joints[:, 0], height)
         distance = float(np.median(np.linalg.norm(plan.camera.poses[:, :3, 3] - joints[:, 0], axis=1)))
@@ -294,7 +294,6 @@ class Views:
                     emit(images, int(i))
                     if progress is not None:
                         progress(int(i) + 1, n, "rendering")
-            skinned.cancel()
         timings.update(skin=self.skin_seconds, skin_wait=wait, render=draw)
 
     def _skin(self, index: np.ndarray) -> list:
