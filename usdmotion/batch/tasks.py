@@ -9,7 +9,6 @@ raises: it returns a row with ``status="error"`` and the one-line message.
 
 from __future__ import annotations
 
-import functools
 import hashlib
 import os
 import time
@@ -134,23 +133,15 @@ def motion_facts(motion) -> dict:
     """Catalogue columns describing a motion (joints, frames, rig family, units...)."""
     import numpy as np
 
+    from usdmotion.skeleton_names import detect_profile
     from usdmotion.summary import unit_name
 
     real = tuple(n for n, end in zip(motion.joint_names, motion.end_sites) if not end)
-    return {"rig_family": _rig_profile(real), "joints": len(real),
+    return {"rig_family": detect_profile(real), "joints": len(real),
             "end_sites": int(np.count_nonzero(motion.end_sites)),
             "frames": motion.n_frames, "fps": float(motion.fps), "duration_s": float(motion.duration),
             "meters_per_unit": float(motion.meters_per_unit), "units": unit_name(motion.meters_per_unit),
             "up_axis": motion.up_axis}
-
-
-@functools.lru_cache(maxsize=256)
-def _rig_profile(joint_names: tuple[str, ...]) -> str | None:
-    """:func:`~usdmotion.skeleton_names.detect_profile`, once per skeleton a worker meets (a
-    library's takes share a few skeletons; matching every profile costs 0.2 ms a take)."""
-    from usdmotion.skeleton_names import detect_profile
-
-    return detect_profile(joint_names)
 
 
 def convert_task(job: Job, row: dict) -> dict:
