@@ -33,6 +33,7 @@ import numpy as np
 
 from usdmotion.kinematics import fk_arrays
 from usdmotion.rotations import quat_conjugate, quat_mul, quat_normalize, quat_rotate
+from usdmotion.skeleton_names import descendants
 
 #: Seconds over which the root's drop is smoothed (see :func:`root_drop`).
 DROP_WINDOW_S = 0.15
@@ -74,23 +75,14 @@ def legs_of(parents: np.ndarray, joints: np.ndarray, parts, offsets: np.ndarray,
         ankle = int(joints[c])
         knee = int(parents[ankle])
         hip = int(parents[knee]) if knee >= 0 else -1
-        if hip < 0 or not _below(parents, hip, top) or min(np.linalg.norm(offsets[[ankle, knee]], axis=1)) <= 0:
+        if hip < 0 or hip not in descendants(parents, top) or min(np.linalg.norm(offsets[[ankle, knee]], axis=1)) <= 0:
             continue
         toe_c = index.get(f"{side}_toe", -1)
         toe = int(joints[toe_c]) if toe_c >= 0 else -1
-        if toe >= 0 and not _below(parents, toe, ankle):
+        if toe >= 0 and toe not in descendants(parents, ankle):
             toe, toe_c = -1, -1
         legs.append(Leg(hip, knee, ankle, toe, c, toe_c))
     return legs
-
-
-def _below(parents: np.ndarray, joint: int, above: int) -> bool:
-    j = int(parents[joint])
-    while j >= 0:
-        if j == above:
-            return True
-        j = int(parents[j])
-    return False
 
 
 def _interp_rows(frames: np.ndarray, known: np.ndarray, values: np.ndarray) -> np.ndarray:
@@ -265,7 +257,7 @@ def _toes_above_floor(q, t, parents, legs: list[Leg], floor: float, up: int) -> 
     world_q, world_p = fk_arrays(q, t, parents)
     for leg in legs:
         pivot = leg.toe if leg.toe >= 0 else leg.ankle  # without a toe: the foot's own End Site
-        for d in (j for j in range(len(parents)) if _below(parents, j, pivot)):
+        for d in descendants(parents, pivot):
             bone = world_p[:, d] - world_p[:, pivot]
             length = np.linalg.norm(bone, axis=-1)
             low = (world_p[:, d, up] < floor) & (length > 0)
