@@ -47,79 +47,19 @@ def import_pyrender():
         _renderer.glRenderbufferStorageMultisample = storage
         mesh_program = _renderer.Renderer._get_primitive_program
 
-        def program(self, primitive, flags, program_flags):  # a primitive's own shader in the colour pass
+        # A primitive with ``usdmotion_shader = "unlit"`` is drawn in the colour pass with pyrender's own
+        # unlit program (flat.frag: base colour times vertex colour), not the lit mesh.frag that
+        # every pixel pays for on a CPU rasteriser (the contact shadow: black, so the same pixels).
+        def program(self, primitive, flags, program_flags):
             own = getattr(primitive, "usdmotion_shader", None)
             if own is None or not program_flags & _renderer.ProgramFlags.USE_MATERIAL or flags & (
                     _renderer.RenderFlags.DEPTH_ONLY | _renderer.RenderFlags.FLAT | _renderer.RenderFlags.SEG):
                 return mesh_program(self, primitive, flags, program_flags)
-            return _own_program(self, primitive, own)
+            return mesh_program(self, primitive, flags | _renderer.RenderFlags.FLAT, program_flags)
 
         _renderer.Renderer._get_primitive_program = program
         _renderer._usdmotion_patched = True
     return pyrender
-
-
-#: Shaders a primitive can ask for instead of pyrender's lit ``mesh.vert``/``mesh.frag`` (set
-#: ``primitive.usdmotion_shader`` to the name): ``"unlit"`` draws its vertex colours times the
-#: material's base colour (premultiplied by nothing, blended as the material says). For a black
-#: vertex colour it is what ``mesh.frag`` gives, bit for bit (lit black is black; the alpha is the
-#: vertex alpha times the material's), without the lighting every pixel pays on a CPU rasteriser;
-#: the position is computed by the same expression as in ``mesh.vert``.
-OWN_SHADERS = {"unlit": ("""#version 330 core
-layout(location = 0) in vec3 position;
-layout(location = COLOR_0_LOC) in vec4 color_0;
-layout(location = INST_M_LOC) in mat4 inst_m;
-uniform mat4 M;
-uniform mat4 V;
-uniform mat4 P;
-out vec4 color_multiplier;
-void main() {
-    gl_Position = P * V * M * inst_m * vec4(position, 1);
-    color_multiplier = color_0;
-}
-""", """#version 330 core
-struct Material { vec3 emissive_factor; vec4 base_color_factor; float metallic_factor; float roughness_factor; };
-uniform Material material;
-in vec4 color_multiplier;
-out vec4 frag_color;
-void main() {
-    vec4 color = vec4(0.0, 0.0, 0.0, 1.0) * color_multiplier;
-    frag_color = clamp(vec4(color.xyz, color.a * material.base_color_factor.a), 0.0, 1.0);
-}
-""")}
-
-
-def _own_program(renderer, primitive, name: str):
-    """The compiled :data:`OWN_SHADERS` program ``name`` for ``primitive``'s vertex layout
-    (attribute locations as pyrender numbers them), cached on the renderer."""
-    import pyrender.renderer as _renderer
-    from pyrender.shader_program import ShaderProgram
-
-    flags = _renderer.BufFlags
-    location, defines = 1, {}
-    for flag, define in ((flags.NORMAL, "NORMAL_LOC"), (flags.TANGENT, "TANGENT_LOC"),
-                         (flags.TEXCOORD_0, "TEXCOORD_0_LOC"), (flags.TEXCOORD_1, "TEXCOORD_1_LOC"),
-                         (flags.COLOR_0, "COLOR_0_LOC"), (flags.JOINTS_0, "JOINTS_0_LOC"),
-                         (flags.WEIGHTS_0, "WEIGHTS_0_LOC")):
-        if primitive.buf_flags & flag:
-            defines[define] = location
-            location += 1
-    defines["INST_M_LOC"] = location
-    cache = renderer.__dict__.setdefault("_usdmotion_programs", {})
-    key = (name, tuple(sorted(defines.items())))
-    if key not in cache:
-
-        class Program(ShaderProgram):
-            def _load(self, source):  # sources, not files; the attribute locations filled in
-                for define, value in self.defines.items():
-                    source = source.replace(define, str(value))
-                return source
-
-        cache[key] = Program(*OWN_SHADERS[name], defines=defines)
-    program = cache[key]
-    if not program._in_context():
-        program._add_to_context()
-    return program
 
 
 def offscreen_renderer(width: int, height: int, msaa: int = 0, fxaa: bool = True):

@@ -1,7 +1,7 @@
 """Soft contact shadow: a dark disc on the ground under the body, opaque in the middle and
 fading to nothing at its rim (per-vertex alpha), that follows the body's horizontal centre
 and shrinks as the body rises (a jump lifts it off its shadow). One small transparent mesh,
-drawn with an unlit shader (:data:`usdmotion.render.gl.OWN_SHADERS`): the lit one cost about 4 ms
+drawn with pyrender's unlit shader (``usdmotion_shader``, see :mod:`usdmotion.render.gl`): the lit one cost about 4 ms
 of CPU a 720p frame on llvmpipe for a black disc.
 """
 
