@@ -26,6 +26,7 @@ toe of the same side stays planted — from there the foot rolls over its toe, w
 only joint still planted (and symmetrically a toe-first landing starts the heel's contact
 once it is down). Without it, a heel contact went on while the source's heel rose up to
 4.8 cm (CMU walk), and a retargeted flat foot held there needed a longer leg than it had.
+A contact it leaves shorter than ``min_duration`` is dropped too.
 
 Everything is vectorised over frames and contact joints (run lengths by ``cumsum``/``diff``).
 """
@@ -272,17 +273,24 @@ def detect_in_signals(heights: np.ndarray, speeds: np.ndarray, fps: float, thres
     enter = (above < thresholds.height_enter) & (speeds < thresholds.speed_enter)
     stay = (above < thresholds.height_exit) & (speeds < thresholds.speed_exit)
     contact = hysteresis(enter, stay)
-    min_frames = int(np.ceil(thresholds.min_duration * fps - 1e-9))
     min_gap = int(np.ceil(thresholds.min_gap * fps - 1e-9))
-    return clean_runs(contact, max(min_frames, 1), min_gap)
+    return clean_runs(contact, min_contact_frames(thresholds, fps), min_gap)
+
+
+def min_contact_frames(thresholds: ContactThresholds, fps: float) -> int:
+    """Frames of the shortest contact kept: ``min_duration`` at ``fps``, at least 1."""
+    return max(int(np.ceil(thresholds.min_duration * fps - 1e-9)), 1)
 
 
 def heel_off(contact: np.ndarray, heights: np.ndarray, parts: tuple[str, ...],
-             rise: float = HEEL_RISE_M) -> np.ndarray:
+             rise: float = HEEL_RISE_M, min_frames: int = 1) -> np.ndarray:
     """``contact (F, C)`` with every heel/ankle contact ended at heel-off (and begun at
     heel-down): the frames at the end (start) of a contact where the joint is more than
     ``rise`` metres above its median height over that contact while the toe of the same
-    side (``parts``: ``"left_toe"``...) is planted. ``heights (F, C)`` in metres."""
+    side (``parts``: ``"left_toe"``...) is planted. ``heights (F, C)`` in metres.
+
+    A contact trimmed below ``min_frames`` frames is dropped, as :func:`clean_runs` drops
+    short contacts (the rest of that heel's stance is the toe's alone)."""
     contact = np.array(contact, bool)
     index = {p: c for c, p in enumerate(parts)}
     for c, part in enumerate(parts):
@@ -296,7 +304,7 @@ def heel_off(contact: np.ndarray, heights: np.ndarray, parts: tuple[str, ...],
             trail = int(np.argmin(up[::-1])) if not up.all() else b - a  # trailing frames up (heel-off)
             contact[a:a + lead, c] = False
             contact[max(a + lead, b - trail):b, c] = False
-    return contact
+    return contact & (_run_lengths(contact) >= min_frames)
 
 
 def detect_contacts(motion: Motion, *, floor: float | None = None, thresholds: ContactThresholds | None = None,
@@ -329,7 +337,7 @@ def detect_contacts(motion: Motion, *, floor: float | None = None, thresholds: C
     floor = estimate_floor(heights, thresholds.floor_percentile) if floor is None else float(floor)
     clearance = planted_clearance(heights, floor, thresholds.floor_percentile)
     contact = detect_in_signals(heights, speeds, motion.fps, thresholds, floor, clearance)
-    contact = heel_off(contact, heights, parts)
+    contact = heel_off(contact, heights, parts, min_frames=min_contact_frames(thresholds, motion.fps))
     return FootContacts(tuple(motion.joint_names[i] for i in indices), indices, parts, contact, floor, clearance,
                         motion.up_axis, float(motion.fps), thresholds)
 
