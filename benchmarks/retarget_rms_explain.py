@@ -73,7 +73,7 @@ def explain_pair(label, source_spec, target_spec) -> dict:
     legs = legs_of(parents, terms.joints, terms.target_contacts.parts, setup.offsets, setup.top)
     contact = terms.target_contacts.contact
     q_c, t_c, drop = place_legs(q_p, t_p, parents, setup.anchor, legs, terms.planted, contact, terms.level, terms.up,
-                                terms.target_contacts.fps, terms.floor)
+                                terms.target_contacts.fps, terms.floor, pipeline.body_weight(setup, terms))
     # the plain solve with only the root lowered by the drop
     t_d = t_p.copy()
     shift = np.zeros((len(drop), 3))

@@ -132,12 +132,13 @@ def contact_terms(setup, source, contacts: FootContacts, root_scale: str = "off"
         hips = centre.copy()
         hips[:, up] += floor
         shift[:, legs] += (k - 1.0) * (setup.targets[:, legs] - hips[:, None])
+    contact = np.asarray(contacts.contact)[:, keep]
     clearance = np.asarray(contacts.clearance)[keep] / source.meters_per_unit * s
+    clearance = np.maximum(clearance, stance_clearance(src_pos[..., up] - floor, contact))
     # (C,) planted level of each target contact joint; a joint planted on the floor itself (the
     # lowest one, clearance 0) is held a hair above it
     level = np.maximum(floor + k * clearance, floor + ABOVE_FLOOR_M / rig.meters_per_unit)
     origin = centre[0] * _horizontal(up)
-    contact = np.asarray(contacts.contact)[:, keep]
     scaled = origin + kh * (src_pos - origin)  # (F, C, 3) the source joints, root-scaled
     scaled[..., up] = floor + k * (src_pos[..., up] - floor)
     planted = scaled.copy()  # during contact: the interval's mean horizontally, its level vertically
@@ -155,6 +156,13 @@ def contact_terms(setup, source, contacts: FootContacts, root_scale: str = "off"
                         restated, dropped)
 
 
+
+
+def stance_clearance(heights: np.ndarray, contact: np.ndarray) -> np.ndarray:
+    """``(C,)`` each joint's median height above the floor over its contact frames
+    (``heights (F, C)``, ``contact (F, C)``; 0 for a joint without contacts)."""
+    return np.array([np.median(heights[contact[:, c], c]) if contact[:, c].any() else 0.0
+                     for c in range(heights.shape[1])])
 
 
 def foot_length_apart(setup, joints: np.ndarray, contact: np.ndarray, planted: np.ndarray, up: int) -> np.ndarray:

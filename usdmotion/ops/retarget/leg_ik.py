@@ -32,6 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from usdmotion.kinematics import fk_arrays
+from usdmotion.ops.contacts.detect import runs
 from usdmotion.rotations import quat_conjugate, quat_mul, quat_normalize, quat_rotate
 from usdmotion.skeleton_names import descendants
 
@@ -43,6 +44,12 @@ REACH = 0.9995
 #: Weight of the foot's heading in the knee's bend direction (per unit of thigh length):
 #: it decides the bend only where the solved leg is (nearly) straight.
 HEADING_SHARE = 0.02
+#: Moving a contact's fixed point (:func:`within_reach`): the joints it moves per frame of
+#: the contact (ankle, knee, toe and the blends around the contact), the farthest move as a
+#: share of the leg's reach, and the grid's steps on each side.
+SHIFT_WEIGHT = 4.0
+SHIFT_REACH = 0.05
+SHIFT_STEPS = 20
 
 
 @dataclass(frozen=True)
@@ -209,6 +216,57 @@ def root_drop(hips: np.ndarray, reach: np.ndarray, ankle_targets: np.ndarray, up
     return np.lib.stride_tricks.sliding_window_view(peak, 2 * half + 1).mean(axis=1)
 
 
+def within_reach(planted: np.ndarray, contact: np.ndarray, legs: list[Leg], hips: np.ndarray, reach: np.ndarray,
+                 up: int, body_weight: float) -> np.ndarray:
+    """``planted (F, C, 3)`` with every ankle contact's fixed point moved horizontally (at
+    its level) where that saves more than it costs, and the toe's fixed point of the same
+    stance moved with it.
+
+    The fixed point is the mean of the sliding source joint over the contact; where the
+    source's leg is nearly straight at the contact's ends, the mean lies beyond the target
+    leg's reach from the hip there and the root comes down for it (:func:`root_drop`),
+    moving every joint above the legs (``body_weight`` of them). Moving the point instead
+    costs the joints of the leg (:data:`SHIFT_WEIGHT` of them) on every frame of the
+    contact. Per contact the point of least ``SHIFT_WEIGHT · frames · shift² + body_weight
+    · Σ drop²`` (drops per flat frame, before smoothing) is picked on a grid of
+    ``(2 SHIFT_STEPS + 1)²`` points within ``SHIFT_REACH`` of the leg's reach.
+
+    Args:
+        hips: ``(F, L, 3)`` the solved hip of each leg.
+        reach: ``(L,)`` hip-to-ankle length of each leg.
+    """
+    planted = planted.copy()
+    horizontal = np.array([i for i in range(3) if i != up])
+    steps = np.linspace(-1.0, 1.0, 2 * SHIFT_STEPS + 1)
+    grid = np.stack(np.meshgrid(steps, steps, indexing="ij"), -1).reshape(-1, 2)  # (G, 2)
+    for l, leg in enumerate(legs):
+        limit = REACH * reach[l]
+        offsets = grid * SHIFT_REACH * reach[l]
+        flat = contact[:, leg.ankle_c] & (contact[:, leg.toe_c] if leg.toe >= 0 else True)
+        shifts = []
+        for a, b in runs(contact[:, leg.ankle_c]):
+            point = planted[a, leg.ankle_c]
+            hip = hips[a:b, l][flat[a:b]]
+            gap = hip[None, :, horizontal] - (point[horizontal] + offsets)[:, None]  # (G, K, 2)
+            horizontal2 = np.sum(gap ** 2, axis=-1)
+            height = hip[None, :, up] - point[up]
+            need = np.where(horizontal2 < limit ** 2, height - np.sqrt(np.maximum(limit ** 2 - horizontal2, 0.0)),
+                            height)
+            cost = (SHIFT_WEIGHT * (b - a) * np.sum(offsets ** 2, axis=-1)
+                    + body_weight * np.sum(np.maximum(need, 0.0) ** 2, axis=-1))
+            shifts.append((a, b, offsets[int(np.argmin(cost))]))
+            planted[a:b, leg.ankle_c, horizontal] += shifts[-1][2]
+        if leg.toe < 0:
+            continue
+        for a, b in runs(contact[:, leg.toe_c]):  # the toe's point keeps its place beside the ankle's
+            both = np.flatnonzero(contact[a:b, leg.ankle_c]) + a
+            if both.size:
+                middle = both[len(both) // 2]
+                shift = next(d for s, e, d in shifts if s <= middle < e)
+                planted[a:b, leg.toe_c, horizontal] += shift
+    return planted
+
+
 def _swing(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``(..., 4)`` the shortest rotations taking directions ``a`` to ``b`` ``(..., 3)``."""
     a, b = _unit(a), _unit(b)
@@ -218,7 +276,7 @@ def _swing(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def place_legs(q: np.ndarray, t: np.ndarray, parents: np.ndarray, anchor: int, legs: list[Leg],
                planted: np.ndarray, contact: np.ndarray, level: np.ndarray, up: int, fps: float,
-               floor: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+               floor: float, body_weight: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(q, t, drop (F,))``: the solve's local rotations ``q (F, J, 4)`` and translations
     ``t (F, J, 3)`` (anchor: world-placed) with every leg on its :func:`foot_targets`, the root
     lowered by ``drop`` where a leg could not reach, and the joints below each toe (its
@@ -234,6 +292,7 @@ def place_legs(q: np.ndarray, t: np.ndarray, parents: np.ndarray, anchor: int, l
     # then the targets are found from the lowered hips (heels lifted, feet turned where needed)
     flat = np.stack([contact[:, leg.ankle_c] & (contact[:, leg.toe_c] if leg.toe >= 0 else True) for leg in legs], 1)
     hips = world_p[:, [leg.hip for leg in legs]]
+    planted = within_reach(planted, contact, legs, hips, reach, up, body_weight)
     points = planted[:, [leg.ankle_c for leg in legs]]
     drop = root_drop(np.where(flat[..., None], hips, points), reach, points, up, fps)
     if drop.max() > 0:

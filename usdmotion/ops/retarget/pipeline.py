@@ -37,7 +37,7 @@ from usdmotion.ops.retarget.hierarchy import (Rig, RetargetError, UnitsMismatchE
                                      derive_rig, mapped_chains, rig_from_motion, source_bone_lengths)
 from usdmotion.ops.retarget import quality as retarget_quality
 from usdmotion.ops.retarget import report as retarget_report
-from usdmotion.ops.retarget.contact_terms import ROOT_SCALES, contact_terms
+from usdmotion.ops.retarget.contact_terms import ROOT_SCALES, contact_terms, leg_joints
 from usdmotion.ops.retarget.jointmap import JointMap, resolve_map
 from usdmotion.ops.retarget.leg_ik import legs_of, place_legs
 from usdmotion.ops.retarget.losses import frame_losses
@@ -451,10 +451,15 @@ def _solve(setup: Setup, q0: np.ndarray, terms, rot_terms, method: str, iteratio
         q, t, _ = place_legs(q, t, setup.rig.parents, setup.anchor, legs_of(
             setup.rig.parents, terms.joints, terms.target_contacts.parts, setup.offsets, setup.top),
             terms.planted, terms.target_contacts.contact, terms.level, terms.up, terms.target_contacts.fps,
-            terms.floor)
+            terms.floor, body_weight(setup, terms))
         solution = dataclasses.replace(solution, run_s=solution.run_s + time.perf_counter() - began)
     q, t = unmapped_rules(setup, q, t, terms.floor if terms is not None else floor_height)
     return continuous_hemisphere(q), t, solution
+
+
+def body_weight(setup: Setup, terms) -> float:
+    """Summed loss weight of the mapped joints off the legs: what a root drop moves."""
+    return float(setup.weights[np.setdiff1d(setup.mapped, leg_joints(setup, terms.joints))].sum())
 
 
 def _compare(source: Motion, setup: Setup, motion: Motion, q0: np.ndarray, terms, rot_terms, iterations) -> dict:
