@@ -135,6 +135,9 @@ def explain_pair(label, source_spec, target_spec) -> dict:
             "legs: ramp blends": part(blend),
         },
     }
+    by_joint = (result - plain).sum(axis=0) / n
+    row["rise_cm2_by_joint"] = {setup.rig.joint_names[mapped[m]]: float(by_joint[m])
+                                for m in np.argsort(-by_joint)[:6]}
     return row
 
 
@@ -155,7 +158,8 @@ def main(argv=None) -> int:
             print(f"skip {label}: {missing[0]} not found under {SHARED_DATA}")
             continue
         rows.append(explain_pair(label, source_spec, target_spec))
-        print(f"{label}: done, load {os.getloadavg()[0]:.1f}", flush=True)
+        print(f"{label}: largest rises (cm²) " + ", ".join(f"{k} {v:.2f}" for k, v in
+                                                          rows[-1]["rise_cm2_by_joint"].items()), flush=True)
     causes = list(rows[0]["rise_cm2"]) if rows else []
     print()
     print_table("RMS of the contact solve over the plain solve: rise of the mean squared error (cm², mean over "

@@ -44,6 +44,8 @@ REACH = 0.9995
 #: Weight of the foot's heading in the knee's bend direction (per unit of thigh length):
 #: it decides the bend only where the solved leg is (nearly) straight.
 HEADING_SHARE = 0.02
+#: Seconds over which a contact's offset fades out into the swing (see :func:`_follow`).
+FADE_S = 0.2
 #: Moving a contact's fixed point (:func:`within_reach`): the joints it moves per frame of
 #: the contact (ankle, knee, toe and the blends around the contact), the farthest move as a
 #: share of the leg's reach, and the grid's steps on each side.
@@ -105,7 +107,7 @@ def _unit(v: np.ndarray) -> np.ndarray:
 
 
 def foot_targets(world_p: np.ndarray, leg: Leg, planted: np.ndarray, contact: np.ndarray, level: np.ndarray,
-                 up: int, reach: float) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+                 up: int, reach: float, fade: float = 0.0) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
     """``(ankle target (F, 3), toe target (F, 3) or None, held (F,))`` of one leg (see the
     module docstring); ``held``: the frames on which the ankle target is a contact's.
 
@@ -153,9 +155,9 @@ def foot_targets(world_p: np.ndarray, leg: Leg, planted: np.ndarray, contact: np
         pivoted = _turn_to_reach(planted[:, leg.toe_c] + pivot, planted[:, leg.toe_c], hip, limit)
         desired = np.where(only_toe[:, None], pivoted, desired)
         held |= only_toe
-        toe_target = _follow(frames, toe, np.where(on_t[:, None], planted[:, leg.toe_c], toe), on_t)
+        toe_target = _follow(frames, toe, np.where(on_t[:, None], planted[:, leg.toe_c], toe), on_t, fade)
         toe_target[:, up] = np.maximum(toe_target[:, up], level[leg.toe_c])
-    ankle_target = _follow(frames, ankle, desired, held)
+    ankle_target = _follow(frames, ankle, desired, held, fade)
     ankle_target[:, up] = np.maximum(ankle_target[:, up], level[leg.ankle_c])
     return ankle_target, toe_target, held
 
@@ -188,11 +190,25 @@ def _turn_to_reach(point: np.ndarray, pivot: np.ndarray, hip: np.ndarray, limit:
     return np.where(outside[:, None], ring, point)
 
 
-def _follow(frames: np.ndarray, solved: np.ndarray, desired: np.ndarray, held: np.ndarray) -> np.ndarray:
+def _follow(frames: np.ndarray, solved: np.ndarray, desired: np.ndarray, held: np.ndarray,
+            fade: float) -> np.ndarray:
     """``desired`` on ``held`` frames, elsewhere ``solved`` plus the offset blended linearly
-    between the nearest held frames (constant beyond the first and last)."""
+    between the nearest held frames, faded out (smoothstep) over ``fade`` frames from the
+    nearer of them: away from the contacts the joint follows the solve."""
     known = np.flatnonzero(held)
-    return solved + _interp_rows(frames, known, (desired - solved)[known])
+    offset = _interp_rows(frames, known, (desired - solved)[known])
+    if known.size == 0 or fade <= 0:
+        return solved + offset
+    return solved + offset * nearness(held, fade)[:, None]
+
+
+def nearness(held: np.ndarray, fade: float) -> np.ndarray:
+    """``(F,)`` 1 on ``held (F,)`` frames, falling (smoothstep) to 0 at ``fade`` frames from the nearest."""
+    frames = np.arange(held.shape[0])
+    before = frames - np.maximum.accumulate(np.where(held, frames, -frames.size - fade))
+    after = np.minimum.accumulate(np.where(held, frames, 2 * frames.size + fade)[::-1])[::-1] - frames
+    near = np.clip(1.0 - np.minimum(before, after) / fade, 0.0, 1.0)
+    return near * near * (3.0 - 2.0 * near)
 
 
 def root_drop(hips: np.ndarray, reach: np.ndarray, ankle_targets: np.ndarray, up: int, fps: float) -> np.ndarray:
@@ -302,7 +318,7 @@ def place_legs(q: np.ndarray, t: np.ndarray, parents: np.ndarray, anchor: int, l
         local = shift if parent < 0 else quat_rotate(quat_conjugate(world_q[:, parent]), shift)
         t[:, anchor] += local
         world_p = world_p + shift[:, None]
-    targets = [foot_targets(world_p, leg, planted, contact, level, up, r) for leg, r in zip(legs, reach)]
+    targets = [foot_targets(world_p, leg, planted, contact, level, up, r, FADE_S * fps) for leg, r in zip(legs, reach)]
     for leg, (ankle_target, toe_target, _) in zip(legs, targets):
         q = _two_bone(q, world_q, world_p, parents, leg, ankle_target, toe_target, up,
                       level[leg.toe_c] if leg.toe >= 0 else None)

@@ -39,7 +39,7 @@ from usdmotion.ops.retarget import quality as retarget_quality
 from usdmotion.ops.retarget import report as retarget_report
 from usdmotion.ops.retarget.contact_terms import ROOT_SCALES, contact_terms, leg_joints
 from usdmotion.ops.retarget.jointmap import JointMap, resolve_map
-from usdmotion.ops.retarget.leg_ik import legs_of, place_legs
+from usdmotion.ops.retarget.leg_ik import legs_of, nearness, place_legs
 from usdmotion.ops.retarget.losses import frame_losses
 from usdmotion.ops.retarget.problem import Problem
 from usdmotion.ops.retarget.aim import aim_init, aim_single_points, identity_quats as _identity
@@ -55,6 +55,15 @@ METHODS = ("lm", "adam")
 #: distances the joint moves (see :func:`smooth_scale`); small enough to leave what the
 #: positions determine alone (RMS +0.x %), large enough to hold what they barely determine.
 PRIOR = 0.01
+#: Iterations of the LM contact phase of the contact solve (0: off), warm-started from the
+#: leg IK's result, which it then gets again (see :func:`_solve`).
+CONTACT_ITERATIONS = 5
+#: Weight of a planted contact joint's distance from where the leg IK put it, in the
+#: contact phase (the mapped joints weigh 1 per unit²).
+CONTACT_WEIGHT = 100.0
+#: Seconds over which that weight fades out around each contact (the held points there are
+#: the IK's blends into the swing).
+CONTACT_FADE_S = 0.2
 #: Sizes (target / source, after unit conversion) outside this range mean the units disagree.
 SIZE_RATIO_RANGE = (0.5, 2.0)
 
@@ -446,15 +455,51 @@ def _solve(setup: Setup, q0: np.ndarray, terms, rot_terms, method: str, iteratio
         args = (setup.rig.parents, setup.mapped, setup.targets, setup.weights)
         worse = frame_losses(t, q, *args) > frame_losses(setup.translations, q0, *args)
         q[worse], t[worse] = q0[worse], setup.translations[worse]
-    if terms is not None:  # the contact solve: the legs meet the contacts analytically
+    if terms is not None:  # the contact solve: the legs meet the contacts analytically ...
         began = time.perf_counter()
-        q, t, _ = place_legs(q, t, setup.rig.parents, setup.anchor, legs_of(
-            setup.rig.parents, terms.joints, terms.target_contacts.parts, setup.offsets, setup.top),
-            terms.planted, terms.target_contacts.contact, terms.level, terms.up, terms.target_contacts.fps,
-            terms.floor, body_weight(setup, terms))
-        solution = dataclasses.replace(solution, run_s=solution.run_s + time.perf_counter() - began)
+        legs = legs_of(setup.rig.parents, terms.joints, terms.target_contacts.parts, setup.offsets, setup.top)
+        place = (setup.rig.parents, setup.anchor, legs, terms.planted, terms.target_contacts.contact, terms.level,
+                 terms.up, terms.target_contacts.fps, terms.floor, body_weight(setup, terms))
+        q, t, _ = place_legs(q, t, *place)
+        compiled = 0.0
+        if CONTACT_ITERATIONS:  # ... the body re-fits the source around the planted feet, and again
+            q, t, phase = _contact_phase(setup, terms, q, t, rot_terms, CONTACT_ITERATIONS)
+            q, t, _ = place_legs(q, t, *place)
+            compiled = phase.compile_s
+        solution = dataclasses.replace(solution, compile_s=solution.compile_s + compiled,
+                                       run_s=solution.run_s + time.perf_counter() - began - compiled)
     q, t = unmapped_rules(setup, q, t, terms.floor if terms is not None else floor_height)
     return continuous_hemisphere(q), t, solution
+
+
+def _contact_phase(setup: Setup, terms, q: np.ndarray, t: np.ndarray, rot_terms, iterations: int):
+    """``(q, t, Solution)``: the LM solve again from the leg IK's result ``q, t`` (anchor
+    world-placed) for ``iterations`` iterations, every contact joint held where the IK put
+    it on its contact frames (weight :data:`CONTACT_WEIGHT`): root, body and legs re-fit
+    the source given the planted feet (what the root's drop and the IK's knees cost)."""
+    mapped, anchor = setup.mapped, setup.anchor
+    base = _problem(setup, *rot_terms)
+    # only the legs and what carries them turn: the rest of the body keeps the plain solve's rotations
+    anc = ancestor_matrix(setup.rig.parents) | np.eye(setup.rig.n_joints, dtype=bool)
+    legs = anc[:, terms.joints].any(axis=1) | anc[terms.joints].any(axis=0)
+    keep = legs[base.rot_joints]
+    problem = dataclasses.replace(base, rot_joints=base.rot_joints[keep], contact_joints=terms.joints, up=terms.up,
+                                  orders=tuple(o for o, k in zip(base.orders, keep) if k),
+                                  prior=base.prior[keep] if len(base.prior) else base.prior)
+    centre = setup.translations[:, anchor]
+    t0 = t.copy()
+    t0[:, anchor] -= centre
+    held = fk_arrays(q, t, setup.rig.parents)[1][:, terms.joints]
+    targets = np.concatenate([setup.targets[:, mapped], held], axis=1) - centre[:, None]
+    contact = np.asarray(terms.target_contacts.contact, bool)
+    fade = CONTACT_FADE_S * terms.target_contacts.fps  # weights that switch in one frame make steps
+    contact = np.stack([nearness(contact[:, c], fade) for c in range(contact.shape[1])], axis=1)
+    weights = np.concatenate([np.broadcast_to(setup.weights[mapped], (q.shape[0], len(mapped))),
+                              CONTACT_WEIGHT * contact], axis=1)
+    solution = solve(problem, q, t0, targets, iterations=iterations, weights=weights)
+    t = solution.t
+    t[:, anchor] += centre
+    return solution.q, t, solution
 
 
 def body_weight(setup: Setup, terms) -> float:
