@@ -19,7 +19,8 @@ to arrays in the target's frame and units (the solver's, before centring):
   horizontally the mean of the source joint's position over the interval (scaled about
   the same ground point when the root is), vertically its planted level
   ``floor + k · clearance`` (the target's ankle sits ``k`` times as high as the source's;
-  never below :data:`ABOVE_FLOOR_M`); a toe's fixed point is then moved to a foot's
+  never below :data:`ABOVE_FLOOR_M`), the clearance being the source joint's median
+  height over its contact frames (:func:`stance_clearance`); a toe's fixed point is then moved to a foot's
   length from its ankle's (:func:`foot_length_apart`);
 * the legs then meet these points analytically (:mod:`usdmotion.ops.retarget.leg_ik`).
 """

@@ -11,7 +11,8 @@ frames at once in float64 NumPy (no per-frame loop):
    solved foot's direction, corrected towards the flat foot's at the heel's side and
    blended out by the contact's other end (so the ankle never jumps); between contacts
    the joint follows the solve plus an offset blended linearly from one contact to the next
-   (footskate clean-up, Kovar et al. 2002). No target lies below the joint's planted level.
+   (footskate clean-up, Kovar et al. 2002), faded out over :data:`FADE_S` from the nearer
+   contact. No target lies below the joint's planted level.
 2. **Reach**: where a foot planted flat (ankle and toe down) lies beyond the leg's length
    from the solved hip, the root comes down (:func:`root_drop`) by the least amount that
    reaches it, smoothed over :data:`DROP_WINDOW_S` (a running maximum, then a moving mean

@@ -361,7 +361,9 @@ def retarget(source: Motion, target: Motion | None = None, *, remove=(), add=(),
         method: ``"lm"`` (default) or ``"adam"`` (the paper's reference).
         iterations: LM's maximum (default 100; it stops once every frame has converged) or
             Adam's iteration count (default 500). With contacts the same solve runs, then the
-            legs meet the contacts analytically (:mod:`usdmotion.ops.retarget.leg_ik`).
+            legs meet the contacts analytically (:mod:`usdmotion.ops.retarget.leg_ik`), a
+            short LM contact phase re-fits hips and legs (:func:`_contact_phase`) and the
+            legs meet the contacts again.
         lengths: ``"source"`` (step 1: mean source bone lengths) or ``"target"`` (keep).
         directions: ``"auto"``/``"mean"``/``"rest"`` for derived rigs (see module doc).
         scale: ``"units"``, ``"auto"`` or a number (targets from files only).
