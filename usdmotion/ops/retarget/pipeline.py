@@ -465,7 +465,7 @@ def _solve(setup: Setup, q0: np.ndarray, terms, rot_terms, method: str, iteratio
         q, t, _ = place_legs(q, t, *place)
         compiled = 0.0
         if CONTACT_ITERATIONS:  # ... the body re-fits the source around the planted feet, and again
-            q, t, phase = _contact_phase(setup, terms, q, t, rot_terms, CONTACT_ITERATIONS)
+            q, t, phase = _contact_phase(setup, terms, legs, q, t, rot_terms, CONTACT_ITERATIONS)
             q, t, _ = place_legs(q, t, *place)
             compiled = phase.compile_s
         solution = dataclasses.replace(solution, compile_s=solution.compile_s + compiled,
@@ -474,17 +474,19 @@ def _solve(setup: Setup, q0: np.ndarray, terms, rot_terms, method: str, iteratio
     return continuous_hemisphere(q), t, solution
 
 
-def _contact_phase(setup: Setup, terms, q: np.ndarray, t: np.ndarray, rot_terms, iterations: int):
+def _contact_phase(setup: Setup, terms, legs, q: np.ndarray, t: np.ndarray, rot_terms, iterations: int):
     """``(q, t, Solution)``: the LM solve again from the leg IK's result ``q, t`` (anchor
     world-placed) for ``iterations`` iterations, every contact joint held where the IK put
-    it on its contact frames (weight :data:`CONTACT_WEIGHT`): root, body and legs re-fit
+    it on its contact frames (weight :data:`CONTACT_WEIGHT`, fading out around them): the
+    root, the hips and the ``legs`` (:class:`~usdmotion.ops.retarget.leg_ik.Leg`) re-fit
     the source given the planted feet (what the root's drop and the IK's knees cost)."""
     mapped, anchor = setup.mapped, setup.anchor
     base = _problem(setup, *rot_terms)
-    # only the legs and what carries them turn: the rest of the body keeps the plain solve's rotations
-    anc = ancestor_matrix(setup.rig.parents) | np.eye(setup.rig.n_joints, dtype=bool)
-    legs = anc[:, terms.joints].any(axis=1) | anc[terms.joints].any(axis=0)
-    keep = legs[base.rot_joints]
+    # only the hips (and what carries them) and each leg's hip, knee and ankle turn: the rest of
+    # the body, the toes and joints between the hips and a leg keep the plain solve's rotations
+    turn = (ancestor_matrix(setup.rig.parents) | np.eye(setup.rig.n_joints, dtype=bool))[:, setup.top]
+    turn[[j for leg in legs for j in (leg.hip, leg.knee, leg.ankle)]] = True
+    keep = turn[base.rot_joints]
     problem = dataclasses.replace(base, rot_joints=base.rot_joints[keep], contact_joints=terms.joints, up=terms.up,
                                   orders=tuple(o for o, k in zip(base.orders, keep) if k),
                                   prior=base.prior[keep] if len(base.prior) else base.prior)
