@@ -198,6 +198,18 @@ def test_stance_feet_fixed_to_1mm(long_legs):
             assert np.linalg.norm(horizontal - horizontal[0], axis=1).max() <= 1e-3
 
 
+def test_the_lm_contact_phase_wins_back_rms(long_legs, monkeypatch):
+    from usdmotion.ops.retarget import pipeline
+
+    source, contacts, result = long_legs
+    monkeypatch.setattr(pipeline, "CONTACT_ITERATIONS", 0)  # the leg IK alone
+    ik_only = pipeline.retarget(source, scaled_legs(source, 1.2), contacts=contacts, lengths="target",
+                                root_scale="legs")
+    with_phase, without = result.report["quality"], ik_only.report["quality"]
+    assert with_phase["rms_cm"] < without["rms_cm"]
+    assert with_phase["feet"]["skate_mean_cm_s"] <= without["feet"]["skate_mean_cm_s"] + 0.01
+
+
 def test_longer_legs_scale_the_root_trajectory(long_legs):
     source, contacts, result = long_legs
     src = joint_positions(source) * source.meters_per_unit
