@@ -37,9 +37,10 @@ from usdmotion.ops.retarget.hierarchy import (Rig, RetargetError, UnitsMismatchE
                                      derive_rig, mapped_chains, rig_from_motion, source_bone_lengths)
 from usdmotion.ops.retarget import quality as retarget_quality
 from usdmotion.ops.retarget import report as retarget_report
-from usdmotion.ops.retarget.contact_terms import ROOT_SCALES, contact_terms, leg_joints
+from usdmotion.ops.retarget.contact_terms import ROOT_SCALES, contact_terms
 from usdmotion.ops.retarget.jointmap import JointMap, resolve_map
-from usdmotion.ops.retarget.leg_ik import legs_of, nearness, place_legs
+from usdmotion.ops.retarget.contact_phase import CONTACT_ITERATIONS, body_weight, contact_phase
+from usdmotion.ops.retarget.leg_ik import legs_of, place_legs
 from usdmotion.ops.retarget.losses import frame_losses
 from usdmotion.ops.retarget.problem import Problem
 from usdmotion.ops.retarget.aim import aim_init, aim_single_points, identity_quats as _identity
@@ -55,15 +56,6 @@ METHODS = ("lm", "adam")
 #: distances the joint moves (see :func:`smooth_scale`); small enough to leave what the
 #: positions determine alone (RMS +0.x %), large enough to hold what they barely determine.
 PRIOR = 0.01
-#: Iterations of the LM contact phase of the contact solve (0: off), warm-started from the
-#: leg IK's result, which it then gets again (see :func:`_solve`).
-CONTACT_ITERATIONS = 5
-#: Weight of a planted contact joint's distance from where the leg IK put it, in the
-#: contact phase (the mapped joints weigh 1 per unit²).
-CONTACT_WEIGHT = 100.0
-#: Seconds over which that weight fades out around each contact (the held points there are
-#: the IK's blends into the swing).
-CONTACT_FADE_S = 0.2
 #: Sizes (target / source, after unit conversion) outside this range mean the units disagree.
 SIZE_RATIO_RANGE = (0.5, 2.0)
 
@@ -362,7 +354,7 @@ def retarget(source: Motion, target: Motion | None = None, *, remove=(), add=(),
         iterations: LM's maximum (default 100; it stops once every frame has converged) or
             Adam's iteration count (default 500). With contacts the same solve runs, then the
             legs meet the contacts analytically (:mod:`usdmotion.ops.retarget.leg_ik`), a
-            short LM contact phase re-fits hips and legs (:func:`_contact_phase`) and the
+            short LM contact phase re-fits hips and legs (:func:`usdmotion.ops.retarget.contact_phase.contact_phase`) and the
             legs meet the contacts again.
         lengths: ``"source"`` (step 1: mean source bone lengths) or ``"target"`` (keep).
         directions: ``"auto"``/``"mean"``/``"rest"`` for derived rigs (see module doc).
@@ -465,50 +457,13 @@ def _solve(setup: Setup, q0: np.ndarray, terms, rot_terms, method: str, iteratio
         q, t, _ = place_legs(q, t, *place)
         compiled = 0.0
         if CONTACT_ITERATIONS:  # ... the body re-fits the source around the planted feet, and again
-            q, t, phase = _contact_phase(setup, terms, legs, q, t, rot_terms, CONTACT_ITERATIONS)
+            q, t, phase = contact_phase(setup, terms, legs, q, t, _problem(setup, *rot_terms), CONTACT_ITERATIONS)
             q, t, _ = place_legs(q, t, *place)
             compiled = phase.compile_s
         solution = dataclasses.replace(solution, compile_s=solution.compile_s + compiled,
                                        run_s=solution.run_s + time.perf_counter() - began - compiled)
     q, t = unmapped_rules(setup, q, t, terms.floor if terms is not None else floor_height)
     return continuous_hemisphere(q), t, solution
-
-
-def _contact_phase(setup: Setup, terms, legs, q: np.ndarray, t: np.ndarray, rot_terms, iterations: int):
-    """``(q, t, Solution)``: the LM solve again from the leg IK's result ``q, t`` (anchor
-    world-placed) for ``iterations`` iterations, every contact joint held where the IK put
-    it on its contact frames (weight :data:`CONTACT_WEIGHT`, fading out around them): the
-    root, the hips and the ``legs`` (:class:`~usdmotion.ops.retarget.leg_ik.Leg`) re-fit
-    the source given the planted feet (what the root's drop and the IK's knees cost)."""
-    mapped, anchor = setup.mapped, setup.anchor
-    base = _problem(setup, *rot_terms)
-    # only the hips (and what carries them) and each leg's hip, knee and ankle turn: the rest of
-    # the body, the toes and joints between the hips and a leg keep the plain solve's rotations
-    turn = (ancestor_matrix(setup.rig.parents) | np.eye(setup.rig.n_joints, dtype=bool))[:, setup.top]
-    turn[[j for leg in legs for j in (leg.hip, leg.knee, leg.ankle)]] = True
-    keep = turn[base.rot_joints]
-    problem = dataclasses.replace(base, rot_joints=base.rot_joints[keep], contact_joints=terms.joints, up=terms.up,
-                                  orders=tuple(o for o, k in zip(base.orders, keep) if k),
-                                  prior=base.prior[keep] if len(base.prior) else base.prior)
-    centre = setup.translations[:, anchor]
-    t0 = t.copy()
-    t0[:, anchor] -= centre
-    held = fk_arrays(q, t, setup.rig.parents)[1][:, terms.joints]
-    targets = np.concatenate([setup.targets[:, mapped], held], axis=1) - centre[:, None]
-    contact = np.asarray(terms.target_contacts.contact, bool)
-    fade = CONTACT_FADE_S * terms.target_contacts.fps  # weights that switch in one frame make steps
-    contact = np.stack([nearness(contact[:, c], fade) for c in range(contact.shape[1])], axis=1)
-    weights = np.concatenate([np.broadcast_to(setup.weights[mapped], (q.shape[0], len(mapped))),
-                              CONTACT_WEIGHT * contact], axis=1)
-    solution = solve(problem, q, t0, targets, iterations=iterations, weights=weights)
-    t = solution.t
-    t[:, anchor] += centre
-    return solution.q, t, solution
-
-
-def body_weight(setup: Setup, terms) -> float:
-    """Summed loss weight of the mapped joints off the legs: what a root drop moves."""
-    return float(setup.weights[np.setdiff1d(setup.mapped, leg_joints(setup, terms.joints))].sum())
 
 
 def _compare(source: Motion, setup: Setup, motion: Motion, q0: np.ndarray, terms, rot_terms, iterations) -> dict:

@@ -1,0 +1,68 @@
+"""The LM contact phase of the contact-aware solve (issue 17).
+
+After the leg IK (:mod:`usdmotion.ops.retarget.leg_ik`) has planted the feet, a few
+iterations of the same batched LM solve re-fit the hips and legs to the source with every
+contact joint held where the IK put it (:func:`contact_phase`); the IK then runs again so
+the contacts hold exactly (``pipeline._solve``). Contact terms:
+:class:`usdmotion.ops.retarget.problem.Problem` ``contact_joints`` with per-frame weights.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from usdmotion.kinematics import fk_arrays
+from usdmotion.ops.retarget.contact_terms import leg_joints
+from usdmotion.ops.retarget.hierarchy import ancestor_matrix
+from usdmotion.ops.retarget.leg_ik import nearness
+from usdmotion.ops.retarget.problem import Problem
+from usdmotion.ops.retarget.solve import solve
+
+#: Iterations of the LM contact phase of the contact solve (0: off), warm-started from the
+#: leg IK's result, which then runs again (``pipeline._solve``).
+CONTACT_ITERATIONS = 5
+#: Weight of a planted contact joint's distance from where the leg IK put it, in the
+#: contact phase (the mapped joints weigh 1 per unit²).
+CONTACT_WEIGHT = 100.0
+#: Seconds over which that weight fades out around each contact (the held points there are
+#: the IK's blends into the swing).
+CONTACT_FADE_S = 0.2
+
+
+def contact_phase(setup, terms, legs, q: np.ndarray, t: np.ndarray, problem: Problem, iterations: int):
+    """``(q, t, Solution)``: the LM solve of ``problem`` (the plain solve's) again from the
+    leg IK's result ``q, t`` (anchor world-placed) for ``iterations`` iterations, every contact joint held where the IK put
+    it on its contact frames (weight :data:`CONTACT_WEIGHT`, fading out around them): the
+    root, the hips and the ``legs`` (:class:`~usdmotion.ops.retarget.leg_ik.Leg`) re-fit
+    the source given the planted feet (what the root's drop and the IK's knees cost)."""
+    mapped, anchor = setup.mapped, setup.anchor
+    base = problem
+    # only the hips (and what carries them) and each leg's hip, knee and ankle turn: the rest of
+    # the body, the toes and joints between the hips and a leg keep the plain solve's rotations
+    turn = (ancestor_matrix(setup.rig.parents) | np.eye(setup.rig.n_joints, dtype=bool))[:, setup.top]
+    turn[[j for leg in legs for j in (leg.hip, leg.knee, leg.ankle)]] = True
+    keep = turn[base.rot_joints]
+    problem = dataclasses.replace(base, rot_joints=base.rot_joints[keep], contact_joints=terms.joints, up=terms.up,
+                                  orders=tuple(o for o, k in zip(base.orders, keep) if k),
+                                  prior=base.prior[keep] if len(base.prior) else base.prior)
+    centre = setup.translations[:, anchor]
+    t0 = t.copy()
+    t0[:, anchor] -= centre
+    held = fk_arrays(q, t, setup.rig.parents)[1][:, terms.joints]
+    targets = np.concatenate([setup.targets[:, mapped], held], axis=1) - centre[:, None]
+    contact = np.asarray(terms.target_contacts.contact, bool)
+    fade = CONTACT_FADE_S * terms.target_contacts.fps  # weights that switch in one frame make steps
+    contact = np.stack([nearness(contact[:, c], fade) for c in range(contact.shape[1])], axis=1)
+    weights = np.concatenate([np.broadcast_to(setup.weights[mapped], (q.shape[0], len(mapped))),
+                              CONTACT_WEIGHT * contact], axis=1)
+    solution = solve(problem, q, t0, targets, iterations=iterations, weights=weights)
+    t = solution.t
+    t[:, anchor] += centre
+    return solution.q, t, solution
+
+
+def body_weight(setup, terms) -> float:
+    """Summed loss weight of the mapped joints off the legs: what a root drop moves."""
+    return float(setup.weights[np.setdiff1d(setup.mapped, leg_joints(setup, terms.joints))].sum())
