@@ -149,7 +149,7 @@ def check_options(options: RenderOptions) -> None:
     for name in camera_names(options):
         check_camera(name)
         if options.focus and is_usd_camera(name):
-            raise UsdMotionError(f"--focus frames a preset camera; {name} is placed by its file")
+            raise UsdMotionError(f"--focus aims a preset (side, path, front, ...); leave it out with {name}")
     for name, value in (("start", options.start), ("stop", options.end)):
         if value is not None and value < 0:
             raise UsdMotionError(f"--frames: {name} {value} is negative; frames count from 0 "
