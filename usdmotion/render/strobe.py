@@ -114,12 +114,10 @@ def _draw(motion: Motion, frames: np.ndarray, plan, options) -> np.ndarray:
     world_q, world_p = fk_arrays(motion.rotations[frames], local_translations(motion)[frames], motion.parents)
     joints = to_render_space(world_p, motion.meters_per_unit, motion.up_axis)
     camera = fixed_camera(motion, frames, options, framing_pad(motion, options)) or plan.camera
-    eye = camera.poses[-1][:3, 3]
-    scene, traced = (pyrender.Scene(bg_color=np.array(COLORS["background"]), ambient_light=np.full(3, 0.45))
-                     for _ in range(2))
-    for view in (scene, traced):
-        view.add(pyrender.PerspectiveCamera(yfov=camera.yfov, aspectRatio=options.width / options.height,
-                                            znear=camera.znear, zfar=camera.zfar), pose=camera.poses[-1])
+    travel = joints[-1, 0] - joints[0, 0]
+    travel[1] = 0.0
+    forward = travel / np.linalg.norm(travel) if np.linalg.norm(travel) > 1e-6 else np.array([0.0, 0.0, 1.0])
+    scene, traced = (_scene(pyrender, camera, options, forward) for _ in range(2))  # poses; traces over them
     body = None
     if options.style != "stick" or any(map(is_com, options.traces)):
         body = build_body(motion, resolution=options.body_resolution)
@@ -130,22 +128,17 @@ def _draw(motion: Motion, frames: np.ndarray, plan, options) -> np.ndarray:
                     weights, translucent=options.style == "both")
     if options.style in ("stick", "both"):
         _add_sticks(scene, stick_figure(motion), joints, weights)
-    distance = float(np.linalg.norm(eye - joints[:, 0].mean(axis=0)))
+    distance = float(np.linalg.norm(camera.poses[-1][:3, 3] - joints[:, 0].mean(axis=0)))
     if options.grid:
         margin = max(2.0, 2 * options.grid_scale)
         lo, hi = joints.reshape(-1, 3).min(axis=0) - margin, joints.reshape(-1, 3).max(axis=0) + margin
         for mesh in grid_mesh(lo, hi, plan.ground, options.grid_scale, max(0.0025 * distance, 0.004),
-                              eye=eye, pixel_angle=2 * np.tan(camera.yfov / 2) / options.height):
+                              eye=camera.poses[-1][:3, 3], pixel_angle=2 * np.tan(camera.yfov / 2) / options.height):
             scene.add(mesh)
     if options.traces:  # the paths over every source frame from the first pose to the last
         span = np.arange(frames[0], frames[-1] + 1)
         for mesh in trace_meshes(motion, options.traces, span, render_joints(motion, span), distance, body):
             traced.add(mesh)
-    travel = joints[-1, 0] - joints[0, 0]
-    travel[1] = 0.0
-    forward = travel / np.linalg.norm(travel) if np.linalg.norm(travel) > 1e-6 else np.array([0.0, 0.0, 1.0])
-    add_lights(scene, forward)
-    add_lights(traced, forward)
     renderer = offscreen_renderer(options.width, options.height, msaa=options.msaa, fxaa=options.fxaa)
     try:
         image = render_rgb(renderer, scene, options.shadows)
@@ -158,6 +151,15 @@ def _draw(motion: Motion, frames: np.ndarray, plan, options) -> np.ndarray:
         text = f"frames {frames[0]}-{frames[-1]}: {len(frames)} poses every {step:.3f} s"
         draw_text(image, [options.labels[0], text] if options.labels[0] else [text])
     return image
+
+
+def _scene(pyrender, camera, options, forward: np.ndarray):
+    """An empty scene seen by ``camera`` (its last pose), lit from the front left of ``forward``."""
+    scene = pyrender.Scene(bg_color=np.array(COLORS["background"]), ambient_light=np.full(3, 0.45))
+    scene.add(pyrender.PerspectiveCamera(yfov=camera.yfov, aspectRatio=options.width / options.height,
+                                         znear=camera.znear, zfar=camera.zfar), pose=camera.poses[-1])
+    add_lights(scene, forward)
+    return scene
 
 
 def _add_bodies(scene, positions: np.ndarray, faces: np.ndarray, weights: np.ndarray, translucent: bool) -> None:
