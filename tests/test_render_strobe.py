@@ -181,3 +181,14 @@ def test_focus_frames_the_named_joints_close_up(shared_file):
                               plan.camera.yfov, 640, 320) for i in range(len(plan.frames))])
     assert (video > 0).all() and (video < (640, 320)).all()
     assert plan.camera.poses[0][1, 3] < joints[..., 1].max()  # a camera near the floor, below the head
+
+
+def test_strobe_cli_draws_traces_styles_and_focus(shared_file, tmp_path, capsys):
+    """The options the still used to refuse now run from the command line: one PNG, the traced pixels in it."""
+    out = tmp_path / "still.png"
+    code = main(["render", str(shared_file(WALK)), str(out), "--units", "asf", "--size", "200x120", "--strobe", "3",
+                 "--trace", "LeftFoot", "--trace", "com", "--style", "both", "--focus", "LeftFoot,LeftToeBase"])
+    assert code == 0 and "3 poses" in capsys.readouterr().out
+    assert [p.name for p in tmp_path.iterdir()] == ["still.png"]
+    image = read_image(out).astype(int)
+    assert ((image[..., 1] - image[..., 0] > 50) & (image[..., 1] - image[..., 2] > 30)).sum() > 20  # the foot's path
