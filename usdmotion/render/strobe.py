@@ -31,7 +31,7 @@ from usdmotion.render.scene import COLORS, add_lights, grid_mesh, material, to_r
 from usdmotion.render.space import render_joints
 from usdmotion.render.traces import is_com, trace_meshes
 from usdmotion.render.views import stick_figure
-from usdmotion.skin import body_size, build_body, lbs, skinning_matrices
+from usdmotion.skin import build_body, lbs, skinning_matrices
 
 STILL_EXTENSIONS = (".png", ".jpg", ".jpeg")
 _EVERY = re.compile(r"^\s*(?P<value>[0-9]*\.?[0-9]+)\s*(?P<unit>s|ms|f|frames?)?\s*$", re.IGNORECASE)
