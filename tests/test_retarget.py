@@ -102,6 +102,33 @@ def test_loss_gradient_matches_finite_differences():
             np.testing.assert_allclose(g, fd, rtol=1e-6, atol=1e-7 * np.abs(fd).max())
 
 
+def test_solve_leaves_out_joints_that_move_no_point():
+    """Unmapped branches (fingers, face bones) are cut out of the solve: the same solution
+    on the other joints as the problem without them, and their own rotations and
+    translations returned as given."""
+    from usdmotion.ops.retarget.solve import Problem, needed_joints, solve
+
+    problem, q, t, targets = small_problem()
+    # the same skeleton with an unmapped branch X (child of 1, index 3) -> Y (index 8) inserted
+    old_to_new = np.array([0, 1, 2, 4, 5, 6, 7])
+    parents = np.array([-1, 0, 1, 1, 2, 1, 5, 0, 3])
+    rng = np.random.default_rng(5)
+    q_big, t_big = euler_to_quat(rng.uniform(-1.0, 1.0, (2, 9, 3)), "ZXY"), rng.normal(size=(2, 9, 3))
+    q_big[:, old_to_new], t_big[:, old_to_new] = q, t
+    big = Problem(parents, old_to_new[problem.mapped], problem.weights, old_to_new[problem.rot_joints],
+                  old_to_new[problem.trans_joints], problem.orders)
+    reduced, keep = needed_joints(big)
+    np.testing.assert_array_equal(np.flatnonzero(keep), old_to_new)
+    np.testing.assert_array_equal(reduced.parents, problem.parents)
+    expected, got = solve(problem, q, t, targets), solve(big, q_big, t_big, targets)
+    assert expected.loss.sum() < 0.5 * expected.initial.sum()  # it did solve something
+    np.testing.assert_allclose(got.q[:, old_to_new], expected.q, atol=1e-6)
+    np.testing.assert_allclose(got.t[:, old_to_new], expected.t, atol=1e-6)
+    np.testing.assert_allclose(got.loss, expected.loss, rtol=1e-6)
+    np.testing.assert_allclose(got.q[:, [3, 8]], q_big[:, [3, 8]], atol=1e-12)
+    np.testing.assert_array_equal(got.t[:, [3, 8]], t_big[:, [3, 8]])
+
+
 @pytest.mark.parametrize("trans", [[0], []])
 def test_tree_lm_step_equals_the_dense_solve_of_the_autodiff_jacobian(trans):
     import jax

@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import os
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -398,6 +398,9 @@ def solve(problem: Problem, q0: np.ndarray, t0: np.ndarray, targets: np.ndarray,
 
     if method not in ("lm", "adam"):
         raise ValueError(f"unknown method {method!r}")
+    full_q0, full_t0 = q0, t0
+    problem, keep = needed_joints(problem)  # joints that move no residual point: not computed at all
+    q0, t0 = q0[:, keep], t0[:, keep]
     extra = len(problem.contact_joints) or len(problem.floor_joints) or problem.smoothing or problem.anchored
     if method == "adam" and extra:
         raise ValueError("the contact, floor and temporal terms need method 'lm'")
@@ -437,9 +440,32 @@ def solve(problem: Problem, q0: np.ndarray, t0: np.ndarray, targets: np.ndarray,
         calls += 1
         if progress is not None:
             progress(stop, n_frames, "retargeting")
-    q, t, loss, initial = (np.concatenate(parts) for parts in zip(*outs))
+    q_kept, t_kept, loss, initial = (np.concatenate(parts) for parts in zip(*outs))
+    q, t = np.array(full_q0, np.float64), np.array(full_t0, np.float64)
+    q[:, keep], t[:, keep] = q_kept, t_kept
     q /= np.linalg.norm(q, axis=-1, keepdims=True)
     return Solution(q, t, loss, initial, compile_s, run_s, chunk, calls, ran)
+
+
+def needed_joints(problem: Problem) -> tuple[Problem, np.ndarray]:
+    """``(problem on the needed joints, keep (J,) bool)``: the joints whose world transform
+    the solve uses — every residual point's joint, every optimised joint and all their
+    ancestors — with the problem's joint indices renumbered onto them (parents still
+    before children). Large rigs carry many joints no mapped point hangs from (DAZ's and
+    Rokoko's fingers, face and twist bones: 57 → 25 and 73 → 29 joints); their rotations
+    and translations come back unchanged, so forward kinematics inside the solve skips them."""
+    used = np.zeros(len(problem.parents), bool)
+    used[np.concatenate([problem.points, problem.rot_joints, problem.trans_joints]).astype(np.int64)] = True
+    keep = used | (ancestor_matrix(problem.parents)[:, used].any(axis=1))
+    if keep.all():
+        return problem, keep
+    new = np.cumsum(keep) - 1
+    parents = problem.parents[keep]
+    renumber = lambda joints: new[np.asarray(joints, np.int64)]  # noqa: E731
+    return replace(
+        problem, parents=np.where(parents < 0, -1, new[np.maximum(parents, 0)]), mapped=renumber(problem.mapped),
+        rot_joints=renumber(problem.rot_joints), trans_joints=renumber(problem.trans_joints),
+        contact_joints=renumber(problem.contact_joints), floor_joints=renumber(problem.floor_joints)), keep
 
 
 def device_description() -> str:
