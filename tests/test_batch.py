@@ -398,3 +398,26 @@ def test_a_redone_task_removes_only_its_takes_temporaries(tmp_path):
                      {}, {}) for stem in ("walk_part0", "walk"))
     _remove_stale_temporaries(jobs)
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(kept)
+
+
+def test_asf_amc_takes_are_found_and_named_like_the_studio_names_them(tmp_path, shared_file):
+    """An ``.amc`` take (its skeleton the ``.asf`` beside it) is a take of the default batch, its
+    catalogue rig family is the Studio library's (CMU ASF bone names: ``asf``), and its output
+    is byte-identical to ``usdmotion convert``'s."""
+    from usdmotion.studio.library import describe_take
+
+    asf, amc = shared_file("cmu86/86.asf"), shared_file("cmu86/86_01.amc")
+    src, out = tmp_path / "src" / "s86", tmp_path / "out"
+    src.mkdir(parents=True)
+    shutil.copy(asf, src / "86.asf")
+    lines = amc.read_text().splitlines(keepends=True)
+    stop = lines.index("41\n")  # the header and frames 1-40 (an AMC frame starts with its number)
+    (src / "86_01.amc").write_text("".join(lines[:stop]))
+    assert main(["batch", "convert", str(src.parent), str(out), "--workers", "1"]) == 0
+    cat = _catalogue(out)
+    assert list(cat.relpath) == ["s86/86_01.amc"] and list(cat.status) == ["ok"]  # the .asf is no take
+    studio = describe_take(src / "86_01.amc", lambda entry: read_motion(entry))["rig"]
+    assert cat.rig_family[0] == studio == "asf"
+    assert cat.frames[0] == 40
+    assert main(["convert", str(src / "86_01.amc"), str(tmp_path / "86_01.usdc")]) == 0
+    assert (tmp_path / "86_01.usdc").read_bytes() == (out / "s86/86_01.usdc").read_bytes()

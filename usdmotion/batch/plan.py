@@ -12,7 +12,8 @@ from usdmotion.errors import InputError
 
 #: Operation → what it writes per take (see :func:`outputs_for`).
 OPERATIONS = ("convert", "analyze", "segment", "retarget", "render")
-MOTION_SUFFIXES = (".bvh", ".usd", ".usda", ".usdc", ".usdz", ".glb", ".gltf")
+#: Take files a batch finds (an ``.amc`` motion reads its skeleton from the ``.asf`` beside it).
+MOTION_SUFFIXES = (".bvh", ".amc", ".usd", ".usda", ".usdc", ".usdz", ".glb", ".gltf")
 DEFAULT_INCLUDE = tuple(f"**/*{suffix}" for suffix in MOTION_SUFFIXES)
 #: ``read_motion`` keyword arguments a job starts from (what the single-file commands default to).
 DEFAULT_READ_OPTIONS = {"units": None, "up_axis": None, "root_offset": "auto", "lenient": False,

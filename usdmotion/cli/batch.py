@@ -19,7 +19,7 @@ SrcDir = Annotated[Path, typer.Argument(help="Folder of motion files (searched r
 OutDir = Annotated[Path, typer.Argument(help="Output folder: mirrors the source tree; holds catalogue.parquet.",
                                         show_default=False)]
 Include = Annotated[list[str] | None, typer.Option(help="Glob(s) of takes to process, relative to SRC_DIR "
-                                                        "(default: every .bvh/.usd*/.glb/.gltf file). Repeatable.",
+                                                        "(default: every .bvh/.amc/.usd*/.glb/.gltf file). Repeatable.",
                                                    show_default=False)]
 Workers = Annotated[int | None, typer.Option(help="Worker processes of the local cluster (default: one per core).",
                                              show_default=False, min=1)]
