@@ -421,3 +421,34 @@ def test_asf_amc_takes_are_found_and_named_like_the_studio_names_them(tmp_path, 
     assert cat.frames[0] == 40
     assert main(["convert", str(src / "86_01.amc"), str(tmp_path / "86_01.usdc")]) == 0
     assert (tmp_path / "86_01.usdc").read_bytes() == (out / "s86/86_01.usdc").read_bytes()
+
+
+def test_default_search_finds_what_the_globs_find(library, tmp_path):
+    """The one-walk search for the default globs gives pathlib's answer for the same globs:
+    symlinked files in, symlinked folders not entered, a file linked from the output folder
+    out, upper-case suffixes and folders named like takes out, the output folder inside the
+    source skipped."""
+    from usdmotion.batch.plan import DEFAULT_INCLUDE, MOTION_SUFFIXES, find_sources
+
+    src = tmp_path / "src"
+    shutil.copytree(library, src)
+    out = src / "out"
+    (out / "s").mkdir(parents=True)
+    (out / "s" / "old.bvh").write_text("written by an earlier run")
+    (src / "link.bvh").symlink_to(src / "session2" / "jacks renamed.bvh")
+    (src / "linked_out.bvh").symlink_to(out / "s" / "old.bvh")
+    (src / "linked_folder").symlink_to(src / "session2", target_is_directory=True)
+    (src / "UPPER.BVH").write_text("x")
+    (src / "folder.bvh").mkdir()
+    (src / ".hidden.bvh").write_text("x")
+
+    def by_globs(exclude: Path | None) -> list[Path]:  # the general path: pathlib's glob per pattern
+        found = {p for pattern in DEFAULT_INCLUDE for p in src.glob(pattern)}
+        return sorted(p for p in found if p.is_file() and p.suffix.lower() in MOTION_SUFFIXES
+                      and (exclude is None or not p.resolve().is_relative_to(exclude.resolve())))
+
+    for exclude in (out, None, tmp_path / "elsewhere"):
+        assert find_sources(src, DEFAULT_INCLUDE, exclude) == by_globs(exclude)
+    names = {p.name for p in find_sources(src, DEFAULT_INCLUDE, out)}
+    assert {"link.bvh", ".hidden.bvh"} <= names and not names & {"linked_out.bvh", "old.bvh", "UPPER.BVH"}
+    assert find_sources(src, ("**/*.usda",), out) == [src / "session2" / "walk_head.usda"]

@@ -60,6 +60,8 @@ def _make_folders(job: Job) -> list[Path]:
     """Create the output folders; return those that did not exist (deepest first)."""
     created = []
     for folder in sorted({Path(p).parent for p in job.outputs.values()}):
+        if folder.is_dir():  # the usual case after a folder's first take: one stat, not one per parent
+            continue
         missing = [f for f in (folder, *folder.parents) if not f.exists()]
         folder.mkdir(parents=True, exist_ok=True)
         created.extend(missing)
