@@ -163,3 +163,31 @@ def test_leg_ik_one_frame_hip_spike_leaves_the_knee_alone():
     assert second.max() < 0.2, second.max()  # 1.3 without: the spike went into the leg
     knee = _angle_steps(q2[:, 2])
     assert knee[28:31].max() <= 2 * np.delete(knee, range(27, 32)).max(), knee[26:33]
+
+
+def test_step_limit_of_a_joint_whose_source_chain_the_target_lacks():
+    """Mixamo's Spine follows CMU's Spine, but its parent (Hips) follows CMU's Hips with
+    LowerBack between them: the target's local rotation carries LowerBack's turn too, so the
+    rotation it follows is LowerBack · Spine (jumps -> Mixamo: a 4.7° jerk of the source hips
+    split 3.0 / 1.7 between LowerBack and Spine had made a limit of 2 × 1.7°). Independent
+    check: the composed local rotations of the source, on the walk with LowerBack removed."""
+    from conftest import shared_path
+
+    from usdmotion.io import read_motion
+    from usdmotion.ops.retarget.pipeline import prepare
+    from usdmotion.ops.retarget.quality import STEP_FLOOR_DEG, step_limits
+    from usdmotion.rotations import quat_mul
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        walk = read_motion(shared_path(WALK), units="asf")
+    walk = walk.with_frames(walk.rotations[1:], walk.root_translation[1:], None)  # frame 0: a T-pose
+    setup = prepare(walk, remove=("LowerBack",))
+    limits = dict(zip(setup.rig.joint_names, step_limits(walk, setup)))
+    rot = {n: walk.rotations[:, walk.joint_names.index(n)] for n in ("LowerBack", "Spine", "LeftLeg", "Spine1")}
+    composed = 2 * largest_steps(quat_mul(rot["LowerBack"], rot["Spine"])[:, None])[0]
+    own = 2 * largest_steps(rot["Spine"][:, None])[0]
+    assert abs(composed - own) > 0.5  # the rule changes this joint's limit
+    assert limits["Spine"] == pytest.approx(max(composed, STEP_FLOOR_DEG), rel=1e-9)
+    for name in ("LeftLeg", "Spine1"):  # chains the target keeps: the joint's own local rotation
+        assert limits[name] == pytest.approx(max(2 * largest_steps(rot[name][:, None])[0], STEP_FLOOR_DEG), rel=1e-9)
