@@ -54,15 +54,16 @@ READ = """() => {
   const p = window.studio.player, nav = performance.getEntriesByType('navigation')[0];
   const entry = part => performance.getEntriesByType('resource').find(e => e.name.includes(part)) || {};
   const waits = window.glWaits.filter(([, t]) => t < p.firstPixelsAt);
-  return {dom_interactive: nav.domInteractive, main_js: entry('/app/main.js').responseEnd,
+  return {request: nav.requestStart, response: nav.responseStart, dom_interactive: nav.domInteractive, main_js: entry('/app/main.js').responseEnd,
           positions: entry('/api/positions').responseStart,
           first_render: p.firstDrawnAt, first_pixels: p.firstPixelsAt,
           on_screen: (performance.getEntriesByName('first-contentful-paint')[0] || {startTime: NaN}).startTime,
           body_pixels: p.bodyPixelsAt,
+          marks: Object.fromEntries(performance.getEntriesByType('mark').map(m => [m.name, m.startTime])),
           gl_waits: waits.map(([name, , dt]) => [name, dt])};
 }"""
 
-COLUMNS = ("dom_interactive", "main_js", "positions", "first_render", "first_pixels", "on_screen", "body_pixels",
+COLUMNS = ("request", "response", "dom_interactive", "main_js", "positions", "first_render", "first_pixels", "on_screen", "body_pixels",
            "gl_wait_total")
 
 
@@ -86,6 +87,7 @@ def one_run(p, base: str, take_id: str) -> dict:
     row["gl_wait_total"] = sum(by_kind.values())
     row["gl_waits_ms"] = dict(by_kind.most_common())
     row["load_average_1min"] = os.getloadavg()[0]
+    row.update({f"mark_{name}": t for name, t in row.pop("marks").items()})
     return row
 
 
@@ -110,9 +112,14 @@ def main() -> None:
         rows = [one_run(p, base, f"0/{copy.name}") for copy in copies]
     print(f"load average (1 min): {os.getloadavg()[0]:.1f}")
     print(f"fresh page on the URL of an unread {args.frames}-frame take; ms from navigation, median of {args.runs}")
-    print("".join(f"{c:>16}" for c in COLUMNS))
+    print("".join(f"{c:>{max(9, len(c) + 1)}}" for c in COLUMNS))
     medians = {c: statistics.median(r[c] for r in rows) for c in COLUMNS}
-    print("".join(f"{medians[c]:>16.0f}" for c in COLUMNS))
+    print("".join(f"{medians[c]:>{max(9, len(c) + 1)}.0f}" for c in COLUMNS))
+    marks = sorted({k for r in rows for k in r if k.startswith("mark_")},
+                   key=lambda k: statistics.median(r.get(k, float("nan")) for r in rows))
+    if marks:  # the page's own performance.mark()s (index.html, main.js), in the order they came
+        print("page marks (ms from navigation, median): " + ", ".join(
+            f"{k[5:]} {statistics.median(r[k] for r in rows if k in r):.0f}" for k in marks))
     kinds = collections.Counter()
     for r in rows:
         kinds.update(r["gl_waits_ms"])

@@ -7,6 +7,7 @@ import {LibraryView} from './library.js';
 import {Player} from './player.js';
 import {Plots} from './plots.js';
 
+performance.mark('main');
 const $ = id => document.getElementById(id);
 const params = new URLSearchParams(location.search);
 const state = {
@@ -69,10 +70,13 @@ player.onFirstFrame = () => {
     if (list.getEntriesByName('first-contentful-paint').length) { observer.disconnect(); window.early.reveal(); }
   }).observe({type: 'paint', buffered: true});
 };
+// the joint spheres' lit program (left out of a linked take's first frame) is compiled once it is on the screen
+Promise.all([window.early.revealed, shown]).then(() => { if (!player.jointsCompiled && player.figure) player.compileJoints(); });
 player.holdEmpty = !!state.take;  // and draws nothing before its take: the first frame drawn is the take's
 player.onStop = () => { $('play').textContent = '▶'; writeUrl(); };
 player.onOrbit = () => { player.cameraMode = 'orbit'; $('camera').value = 'orbit'; };
 player.onCamera = () => { clearTimeout(player.urlTimer); player.urlTimer = setTimeout(writeUrl, 300); };
+performance.mark('player');
 const plots = new Plots($('plots'), t => player.setFrame(Math.round(t * player.fps)));
 const library = new LibraryView($('takes'), $('filter'), $('library-status'), id => openTake(id, true));
 // the tool panels (edits, retarget, video) see the page through these few hooks
@@ -114,9 +118,9 @@ async function openTake(id, fresh) {
   $('view-message').textContent = 'loading…';
   try {
     take = await loadTake(id);
+    performance.mark('take');
   } catch (e) {
-    const name = id.split('/').slice(1).join('/') || id;
-    const line = e.message.includes(name) ? e.message : `${name}: ${e.message}`;
+    const line = e.message;  // the server's line: the CLI's for the same file (usdmotion: error: FILE[:LINE]: ...)
     if (player.figure) {  // the take shown before stays, with the line under it
       $('view-message').textContent = line;
       $('view-message').className = 'error-text';
@@ -151,7 +155,7 @@ async function openTake(id, fresh) {
   takeShown();
   $('view-message').textContent = 'body: loading…';
   // the body first, then the plots (their analysis would slow the body's first build on the server)
-  const glb = takeGlb(id);
+  const glb = window.early.revealed.then(() => takeGlb(id));
   await Promise.all([glb.catch(() => null).then(loadSeries), state.comTrace && take.comLoaded.then(applyTrace),
                      state.compare ? openCompare() : Promise.resolve(), (async () => {
     const ok = await figure.loadBody(glb);

@@ -8,7 +8,7 @@ export class Player {
   constructor(canvas, onFrame) {
     this.canvas = canvas;
     this.onFrame = onFrame;
-    this.renderer = new THREE.WebGLRenderer({canvas, antialias: true, preserveDrawingBuffer: true});
+    this.renderer = new THREE.WebGLRenderer({canvas, antialias: true});
     // no error checks after each shader compile and link: each is a round trip that waits for the GPU
     // process (busy compositing the page in software WebGL), and three's own shaders do not fail
     this.renderer.debug.checkShaderErrors = false;
@@ -226,7 +226,6 @@ export class Player {
         if (this.firstPixelsAt === null) this.firstPixelsAt = performance.now();
         if (firstBody) this.bodyPixelsAt = performance.now();
       }
-      if (firstFrame && !this.jointsCompiled) this.compileJoints();
       if (firstFrame && this.onFirstFrame) this.onFirstFrame();
       if (this.playing) this.playLog.push([t, this.frame]);
       if (this.playLog.length > 4000) this.playLog.splice(0, 2000);
