@@ -54,7 +54,8 @@ READ = """() => {
   const p = window.studio.player, nav = performance.getEntriesByType('navigation')[0];
   const entry = part => performance.getEntriesByType('resource').find(e => e.name.includes(part)) || {};
   const waits = window.glWaits.filter(([, t]) => t < p.firstPixelsAt);
-  return {request: nav.requestStart, response: nav.responseStart, dom_interactive: nav.domInteractive, main_js: entry('/app/main.js').responseEnd,
+  return {request: nav.requestStart, response: nav.responseStart, dom_interactive: nav.domInteractive,
+          main_js: entry('/app/main.js').responseEnd,
           positions: entry('/api/positions').responseStart,
           first_render: p.firstDrawnAt, first_pixels: p.firstPixelsAt,
           on_screen: (performance.getEntriesByName('first-contentful-paint')[0] || {startTime: NaN}).startTime,
@@ -63,7 +64,8 @@ READ = """() => {
           gl_waits: waits.map(([name, , dt]) => [name, dt])};
 }"""
 
-COLUMNS = ("request", "response", "dom_interactive", "main_js", "positions", "first_render", "first_pixels", "on_screen", "body_pixels",
+COLUMNS = ("request", "response", "dom_interactive", "main_js", "positions", "first_render", "first_pixels", "on_screen",
+           "body_pixels",
            "gl_wait_total")
 
 

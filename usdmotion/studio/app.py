@@ -89,7 +89,8 @@ class StudioApi:
         if len(ids) > MAX_IDS:
             raise StudioError(413, f"at most {MAX_IDS} ids per request")
         entries = {take_id: self.library.resolve(take_id) for take_id in ids}
-        return JSONResponse({"meta": {take_id: self.library.metadata(e) if e else {"error": self.library.missing_line(take_id)}
+        return JSONResponse({"meta": {take_id: self.library.metadata(e) if e
+                                      else {"error": self.library.missing_line(take_id)}
                                       for take_id, e in entries.items()}})
 
     def skeleton(self, request: Request) -> Response:

@@ -71,7 +71,9 @@ player.onFirstFrame = () => {
   }).observe({type: 'paint', buffered: true});
 };
 // the joint spheres' lit program (left out of a linked take's first frame) is compiled once it is on the screen
-Promise.all([window.early.revealed, shown]).then(() => { if (!player.jointsCompiled && player.figure) player.compileJoints(); });
+Promise.all([window.early.revealed, shown]).then(() => {
+  if (!player.jointsCompiled && player.figure) player.compileJoints();
+});
 player.holdEmpty = !!state.take;  // and draws nothing before its take: the first frame drawn is the take's
 player.onStop = () => { $('play').textContent = '▶'; writeUrl(); };
 player.onOrbit = () => { player.cameraMode = 'orbit'; $('camera').value = 'orbit'; };
@@ -152,6 +154,7 @@ async function openTake(id, fresh) {
   if (segments) segments.setTake(take);
   player.setFrame(state.frame);
   if (edits) { edits.opened(take); retargeting.opened(take); }
+  player.draw();
   takeShown();
   $('view-message').textContent = 'body: loading…';
   // the body first, then the plots (their analysis would slow the body's first build on the server)

@@ -208,6 +208,12 @@ export class Player {
       }
       if (f !== this.frame) this.setFrame(f);
     }
+    this.draw();
+  }
+
+  /** Draw the view if anything changed (the animation loop calls it; a take just opened draws its
+   *  first frame at once with it, not one animation frame later: a busy GPU process delays those). */
+  draw() {
     if (this.dirty && (this.figure || !this.holdEmpty)) {
       if (this.split && this.ghost) this.renderSplit();
       else this.renderer.render(this.scene, this.camera);
