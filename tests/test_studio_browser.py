@@ -265,6 +265,9 @@ def test_url_reopens_the_same_frame_and_camera(studio, browser, page):
         assert [asked.count(what) for what in ("skeleton", "positions", "glb")] == [1, 1, 1], asked
         assert asked.index("positions") < asked.index("takes") and asked.index("positions") < asked.index("glb")
         assert other.evaluate("window.studio.player.renderer.getContext() === window.early.gl")
+        # at the size the page lays the canvas out: its drawing buffer was made once (style.css and the
+        # guess in index.html agree)
+        assert other.evaluate("window.early.resized") is False
         # the tool panels' modules (and uPlot) and the library's list (hidden until then) are fetched only
         # once the take's first frame is drawn
         assert other.evaluate("""() => ['app/segment.js', 'app/edits.js', 'app/retarget.js', 'app/video.js',

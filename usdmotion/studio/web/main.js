@@ -353,8 +353,10 @@ async function start() {
   if (!state.take) player.warmUp();
   const opening = state.take ? openTake(state.take, false) : null;
   if (opening) {  // a linked take is drawn before the library is listed (hidden until then: index.html)
-    await Promise.race([shown, opening]);  // and read, and before the panels are loaded
-    await new Promise(resolve => requestAnimationFrame(() => setTimeout(resolve)));  // after the draw
+    // and read, and before the panels are loaded: once that frame is on the screen (revealed), so that
+    // neither the page's work nor the server's listing takes the two cores from the frame's compositing
+    await Promise.race([shown, opening]);
+    await window.early.revealed;
   }
   await library.load();  // the list of takes, at once
   const panels = loadPanels();
