@@ -268,6 +268,10 @@ def test_url_reopens_the_same_frame_and_camera(studio, browser, page):
         # at the size the page lays the canvas out: its drawing buffer was made once (style.css and the
         # guess in index.html agree)
         assert other.evaluate("window.early.resized") is False
+        # software WebGL here (SwiftShader): drawn without multisampling, which a GPU would do for free
+        renderer, antialias = other.evaluate("[window.early.renderer, window.studio.player.renderer.getContext()"
+                                             ".getContextAttributes().antialias]")
+        assert "SwiftShader" in renderer and antialias is False, (renderer, antialias)
         # the tool panels' modules (and uPlot) and the library's list (hidden until then) are fetched only
         # once the take's first frame is drawn
         assert other.evaluate("""() => ['app/segment.js', 'app/edits.js', 'app/retarget.js', 'app/video.js',

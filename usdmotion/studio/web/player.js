@@ -8,7 +8,7 @@ export class Player {
   constructor(canvas, onFrame) {
     this.canvas = canvas;
     this.onFrame = onFrame;
-    this.renderer = new THREE.WebGLRenderer({canvas, antialias: true});
+    this.renderer = new THREE.WebGLRenderer({canvas, antialias: window.early.antialias});  // index.html
     // no error checks after each shader compile and link: each is a round trip that waits for the GPU
     // process (busy compositing the page in software WebGL), and three's own shaders do not fail
     this.renderer.debug.checkShaderErrors = false;
