@@ -23,9 +23,13 @@ Also per pair the **stance drift** of the contact solve: the largest horizontal 
 of a contact joint from where it stood at the start of its contact, over every contact
 (float64 forward kinematics of the written motion; issue 17's "stance feet fixed to 1 mm").
 
-Run: ``python benchmarks/retarget_contacts.py [--quick] [--pairs TEXT[,TEXT...]]`` (quick: the
-walk pairs only; ``--pairs bandai,1.2x``: the pairs whose label contains one of the texts).
-Writes ``benchmarks/results/retarget_contacts.json``.
+Run: ``python benchmarks/retarget_contacts.py [--quick] [--pairs TEXT[,TEXT...]] [--damping
+fixed|nielsen]`` (quick: the walk pairs only; ``--pairs bandai,1.2x``: the pairs whose label
+contains one of the texts; ``--damping``: LM's λ update, see
+``usdmotion/ops/retarget/problem.py``). The frames/s column also gives the LM iterations of
+the solve (the most any chunk ran): deterministic, unlike the timings on a loaded machine.
+Writes ``benchmarks/results/retarget_contacts.json`` (``retarget_contacts_nielsen.json``
+with ``--damping nielsen``).
 """
 
 from __future__ import annotations
@@ -173,11 +177,17 @@ def profile_maps() -> list[dict]:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="the walk pairs only")
+    parser.add_argument("--damping", choices=("fixed", "nielsen"), default="fixed",
+                        help="LM's damping update (default fixed, the library's default)")
     parser.add_argument("--pairs", default="", help="comma-separated texts: only the pairs whose label contains one "
                                                       "(case-insensitive), e.g. 'bandai,1.2x'")
     args = parser.parse_args(argv)
+    import importlib
+
     from usdmotion.ops.retarget.solve import device_description, enable_compilation_cache
 
+    importlib.import_module("usdmotion.ops.retarget.solve").DAMPING = args.damping
+    name = "retarget_contacts" + ("" if args.damping == "fixed" else "_" + args.damping)
     enable_compilation_cache()
     wanted = [w.strip().lower() for w in args.pairs.split(",") if w.strip()]
     pairs = [p for p in PAIRS if (not args.quick or p[1] is WALK)
@@ -196,7 +206,8 @@ def main(argv=None) -> int:
         print(f"{label}: {row['wall_s']:.0f} s, load {row['load_1min']:.1f}; skate {pl['feet']['skate_mean_cm_s']:.2f}"
               f" -> {c['feet']['skate_mean_cm_s']:.2f} cm/s, RMS {pl['rms_cm']:.2f} -> {c['rms_cm']:.2f} cm, "
               f"stance drift {c['stance_drift_mm']:.1f} mm, flips {len(c['flips'])}", flush=True)
-        write_results("retarget_contacts", {"device": device_description(), "rows": rows, "partial": True})
+        write_results(name, {"device": device_description(), "damping": args.damping, "rows": rows,
+                             "partial": True})
     table = []
     for row in rows:
         for method, q in row["methods"].items():
@@ -204,16 +215,16 @@ def main(argv=None) -> int:
             table.append([row["pair"], method, f"{q['feet']['skate_mean_cm_s']:.2f}",
                           f"{100 * q['feet']['skate_share']:.0f} %", f"{q['feet']['penetration_max_cm']:.2f}",
                           f"{q['floor']['max_depth_cm']:.2f}", f"{100 * q['feet']['floating_share']:.0f} %",
-                          f"{q['rms_cm']:.2f}", "-" if fps is None else f"{fps:,.0f}",
+                          f"{q['rms_cm']:.2f}", "-" if fps is None else f"{fps:,.0f} ({row['iterations'][method]})",
                           f"{q['stance_drift_mm']:.2f}" if "stance_drift_mm" in q else "-",
                           ", ".join(f"{k} {v['step_deg']:.0f}/{v['limit_deg']:.0f}°" for k, v in
                                     list(q["flips"].items())[:3]) + (" ..." if len(q["flips"]) > 3 else "")
                           or "none"])
     print()
-    print_table(f"Retargeting with contacts ({device_description()}; 1-min load average "
+    print_table(f"Retargeting with contacts ({device_description()}; LM damping {args.damping}; 1-min load average "
                 f"{os.getloadavg()[0]:.1f}; frames/s: solve only, compile excluded)",
                 ["pair", "method", "skate cm/s", "sliding", "pen. feet cm", "below floor cm", "floating", "RMS cm",
-                 "frames/s", "stance drift mm", "rotation steps above limit (step/limit)"], table)
+                 "frames/s (LM iterations)", "stance drift mm", "rotation steps above limit (step/limit)"], table)
     print()
     print_table("Goals (contact solve)", ["pair", *rows[0]["goals"]] if rows else ["pair"],
                 [[r["pair"], *("yes" if v else "NO" for v in r["goals"].values())] for r in rows])
@@ -225,7 +236,7 @@ def main(argv=None) -> int:
         else:
             print(f"map onto {m['rig']} ({m['how']}): {m['mapped']} of {m['joints']} joints: "
                   + ", ".join(f"{k}<-{v}" for k, v in m["pairs"].items()))
-    path = write_results("retarget_contacts", {"device": device_description(), "rows": rows, "maps": maps})
+    path = write_results(name, {"device": device_description(), "damping": args.damping, "rows": rows, "maps": maps})
     print(f"\nwrote {path.relative_to(REPO)}")
     return 0
 

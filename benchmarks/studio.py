@@ -2,7 +2,8 @@
 in headless Chromium (software WebGL, SwiftShader) at 1280×720; GLB size and the server's
 time per request.
 
-    PYTHONPATH=$PWD .venv/bin/python benchmarks/studio.py [--frames 5000] [--play 6] [--library 3000]
+    PYTHONPATH=$PWD .venv/bin/python benchmarks/studio.py [--frames 5000] [--play 6] [--library 3000] \
+        [--runs 5] [--peer DIR]
 
 Goals (issue 13): ≤ 1.0 s from opening the take to its first drawn frame; playback that keeps
 real time at 1280×720 (frames are dropped, never slowed: the take's clock advances at the
@@ -19,6 +20,12 @@ row the same in a new tab of that running browser, on another unread take (a lin
 browser a coach already has open). Their ``on screen`` column is when the first frame was presented
 (the page's first contentful paint: a linked page shows its view alone, and draws nothing in it,
 until the take's first frame is there; Chrome times a paint when the GPU process presented it).
+The ``url`` and ``link`` rows are taken ``--runs`` times (a fresh browser each time, each on takes the
+server has not read) and their medians reported, against a ``usdmotion studio`` process of this checkout
+(the way a coach runs it: its own process). ``--peer DIR`` (another checkout of usdmotion, e.g. main's:
+``git worktree add /tmp/main main`` and a link to this checkout's ``usdmotion/studio/web/node_modules``)
+runs the same rows against that checkout's studio, alternated run by run with ours, and prints the
+ratios of the medians (ours / peer): the comparison that holds on a loaded machine.
 Also: how soon a library of ``--library`` files is listed and filled in.
 Prints a table; writes ``benchmarks/results/studio.json``.
 """
@@ -26,9 +33,13 @@ Prints a table; writes ``benchmarks/results/studio.json``.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import platform
+import socket
+import statistics
+import subprocess
 import sys
 import tempfile
 import time
@@ -54,6 +65,72 @@ def make_take(folder: Path, frames: int) -> Path:
     path.parent.mkdir(parents=True)
     write_motion(long, path)
     return path
+
+
+@contextlib.contextmanager
+def studio_process(tree: Path, lib: Path, out: Path):
+    """``usdmotion studio LIB --units asf`` of the checkout ``tree``, in its own process, on a free
+    port; yields the base URL; always stopped."""
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        port = sock.getsockname()[1]
+    proc = subprocess.Popen([sys.executable, "-m", "usdmotion", "studio", str(lib), "--units", "asf", "--no-open",
+                             "--port", str(port), "--out", str(out)], cwd=tree,
+                            env={**os.environ, "PYTHONPATH": str(tree)}, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
+    base = f"http://127.0.0.1:{port}"
+    try:
+        deadline = time.monotonic() + 120
+        while True:
+            try:
+                urllib.request.urlopen(base + "/api/takes", timeout=5).read()
+                break
+            except OSError:
+                if proc.poll() is not None or time.monotonic() > deadline:
+                    raise RuntimeError(f"the studio of {tree} did not start") from None
+                time.sleep(0.1)
+        yield base
+    finally:
+        proc.terminate()
+        proc.wait(30)
+
+
+def unread_copies(take: Path, tag: str, n: int) -> list[str]:
+    """Ids of ``n`` copies of ``take`` (a server opening one has read nothing of it yet)."""
+    ids = []
+    for i in range(n):
+        copy = take.with_name(f"{tag}{i}_{take.name}")
+        copy.write_bytes(take.read_bytes())
+        ids.append(f"0/{copy.name}")
+    return ids
+
+
+def links(p, trees: list[Path], lib: Path, tmp: Path, runs: int, play_s: float) -> dict:
+    """The ``url`` and ``link`` rows, ``runs`` times per checkout, alternated: ``{tree: {"url": [row...],
+    "link": [row...]}}``."""
+    from test_studio_browser import ARGS, CHROMIUM
+
+    take = lib / next(f.name for f in lib.iterdir() if f.name.startswith("walk_"))
+    ids = {tree: (unread_copies(take, f"url{k}_", runs), unread_copies(take, f"link{k}_", runs))
+           for k, tree in enumerate(trees)}
+    rows = {tree: {"url": [], "link": []} for tree in trees}
+    with contextlib.ExitStack() as stack:
+        bases = {tree: stack.enter_context(studio_process(tree, lib, tmp / f"out_{k}")) for k, tree in enumerate(trees)}
+        for i in range(runs):
+            for tree in trees:
+                browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
+                try:
+                    rows[tree]["url"].append(open_and_play(browser, bases[tree], ids[tree][0][i], play_s, by_url=True))
+                    rows[tree]["link"].append(open_and_play(browser, bases[tree], ids[tree][1][i], play_s,
+                                                            by_url=True))  # a new tab of the running browser
+                finally:
+                    browser.close()
+    return rows
+
+
+def median_row(rows: list[dict]) -> dict:
+    """The median of each number over ``rows`` (the canvas size of the first)."""
+    return {k: (rows[0][k] if k == "canvas" else statistics.median(r[k] for r in rows)) for k in rows[0]}
 
 
 def server_timing(base: str, target: str) -> tuple[float, int, float]:
@@ -133,6 +210,8 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=5000)
     ap.add_argument("--play", type=float, default=6.0)
     ap.add_argument("--library", type=int, default=3000, help="files in the library-listing case")
+    ap.add_argument("--runs", type=int, default=5, help="runs of the url and link rows (medians)")
+    ap.add_argument("--peer", type=Path, help="another checkout to compare the url and link rows with")
     args = ap.parse_args()
     from playwright.sync_api import sync_playwright
 
@@ -142,16 +221,16 @@ def main() -> None:
     tmp = Path(tempfile.mkdtemp(prefix="studio_bench_"))
     take = make_take(tmp, args.frames)
     take_id = f"0/{take.name}"
-    unread = take.with_name(f"unread_{take.name}")  # opened first by URL: nothing read or cached yet
-    unread.write_bytes(take.read_bytes())
-    unread_too = take.with_name(f"unread2_{take.name}")  # the link row's: also not read yet
-    unread_too.write_bytes(take.read_bytes())
-    rows = {}
+    trees = [ROOT, *([args.peer.resolve()] if args.peer else [])]
+    loads = [os.getloadavg()[0]]
+    with sync_playwright() as p:
+        link_rows = links(p, trees, take.parent, tmp, args.runs, args.play)
+    loads.append(os.getloadavg()[0])
+    medians = {tree: {row: median_row(runs) for row, runs in link_rows[tree].items()} for tree in trees}
+    rows = dict(medians[ROOT])
     with running_studio([take.parent], units="asf", out=tmp / "out") as base, sync_playwright() as p:
         browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
         try:
-            rows["url"] = open_and_play(browser, base, f"0/{unread.name}", args.play, by_url=True)
-            rows["link"] = open_and_play(browser, base, f"0/{unread_too.name}", args.play, by_url=True)  # a new tab
             rows["cold"] = open_and_play(browser, base, take_id, args.play)  # server reads, FK, builds the body
             rows["warm"] = open_and_play(browser, base, take_id, args.play)  # server caches, GLB from out/cache
             library = library_fill(browser, args.library, tmp)
@@ -162,7 +241,8 @@ def main() -> None:
             ("positions", f"/api/positions?take={take_id}"), ("com", f"/api/com?take={take_id}"),
             ("series", f"/api/series?take={take_id}&joints=LeftLeg,RightLeg&q=bend,speed,com_height"),
             ("glb", f"/api/glb?take={take_id}")]}
-    print(f"load average (1 min): {os.getloadavg()[0]:.1f}")
+    print(f"load average (1 min): {min(loads):.1f}-{max(loads):.1f} while the url and link rows ran, "
+          f"{os.getloadavg()[0]:.1f} at the end")
     print(f"studio: {args.frames}-frame, 31-joint take at 120 fps; headless Chromium {platform.machine()}, "
           "SwiftShader WebGL, canvas " + "x".join(map(str, rows["cold"]["canvas"])))
     print("url: fresh page on the take's URL, timed from navigation (reads the file); link: the same in a new tab "
@@ -178,6 +258,19 @@ def main() -> None:
         print(f"{name:<6}{r['first_frame_s']:>15.3f}{r['first_pixels_s']:>10.3f}"
               f"{r['first_pixels_s'] / 1.0:>12.2f}{shown}"
               f"{r['body_s']:>9.2f}{r['body_pixels_s']:>10.2f}{r['take_frames_per_s']:>15.1f}{r['drawn_per_s']:>9.1f}")
+    print(f"url, link: medians of {args.runs} runs (a fresh browser each) against `usdmotion studio` in its own "
+          "process; pixels over the runs: " + "; ".join(
+              f"{row} " + ", ".join(f"{r['first_pixels_s']:.3f}" for r in link_rows[ROOT][row])
+              for row in ("url", "link")))
+    if args.peer:
+        peer = medians[trees[1]]
+        print(f"peer {trees[1]} (alternated run by run with ours), medians, s, and ours / peer:")
+        for row in ("url", "link"):
+            ours, theirs = medians[ROOT][row], peer[row]
+            ratio = {k: ours[k] / theirs[k] for k in ("first_pixels_s", "on_screen_s", "body_pixels_s")}
+            print(f"  {row:<5} pixels {theirs['first_pixels_s']:.3f} (ratio {ratio['first_pixels_s']:.2f}), "
+                  f"on screen {theirs['on_screen_s']:.3f} (ratio {ratio['on_screen_s']:.2f}), "
+                  f"body pixels {theirs['body_pixels_s']:.2f} (ratio {ratio['body_pixels_s']:.2f})")
     print(f"{'request (warm)':<16}{'server ms':>10}{'bytes':>12}{'client ms':>11}")
     for name, (server_ms, size, client_ms) in requests.items():
         print(f"{name:<16}{server_ms:>10.1f}{size:>12,}{client_ms:>11.1f}")
@@ -186,7 +279,9 @@ def main() -> None:
     out = ROOT / "benchmarks" / "results" / "studio.json"
     out.parent.mkdir(exist_ok=True)
     out.write_text(json.dumps({"frames": args.frames, "open": rows, "goal_first_frame_s": 1.0,
-                               "load_average_1min": os.getloadavg()[0],
+                               "load_average_1min": os.getloadavg()[0], "load_average_links": [min(loads), max(loads)],
+                               "runs": args.runs, "link_runs": {str(t): v for t, v in link_rows.items()},
+                               "peer": None if not args.peer else {"tree": str(trees[1]), "medians": medians[trees[1]]},
                                "requests_warm": {k: {"server_ms": v[0], "bytes": v[1], "client_ms": v[2]}
                                                  for k, v in requests.items()},
                                "glb_bytes": requests["glb"][1], "library": library}, indent=2))

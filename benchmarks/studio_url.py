@@ -1,7 +1,7 @@
 """Where a fresh page on a take's URL spends its time before the first frame (issue 13's `url` row of
 ``benchmarks/studio.py``, taken apart).
 
-    PYTHONPATH=$PWD .venv/bin/python benchmarks/studio_url.py [--runs 3] [--frames 5000]
+    PYTHONPATH=$PWD .venv/bin/python benchmarks/studio_url.py [--runs 3] [--frames 5000] [--peer DIR]
 
 Each run starts a fresh headless Chromium (software WebGL, the tests' flags) on a copy of the
 5,000-frame take the server has not read, opens ``/?take=...`` and records, in ms from navigation:
@@ -12,7 +12,10 @@ linked page shows its view alone, and draws nothing in it, until the take's firs
 times a paint when the GPU process presented it), the body's pixels; and the calls into WebGL that
 blocked the page for more than 3 ms before the first pixels (each is a round trip to the GPU process:
 context creation, the first query after it, shader link status, the benchmark's pixel read-back), by kind. Medians over
-the runs; prints a table and writes ``benchmarks/results/studio_url.json``.
+the runs; prints a table and writes ``benchmarks/results/studio_url.json``. The server is
+``usdmotion studio`` of this checkout in its own process; ``--peer DIR`` (another checkout, e.g. main's,
+see ``benchmarks/studio.py``) runs the same against its studio, alternated run by run, and prints the
+ratios of the medians (ours / peer).
 """
 
 from __future__ import annotations
@@ -54,16 +57,18 @@ READ = """() => {
   const p = window.studio.player, nav = performance.getEntriesByType('navigation')[0];
   const entry = part => performance.getEntriesByType('resource').find(e => e.name.includes(part)) || {};
   const waits = window.glWaits.filter(([, t]) => t < p.firstPixelsAt);
-  return {dom_interactive: nav.domInteractive, main_js: entry('/app/main.js').responseEnd,
+  return {request: nav.requestStart, response: nav.responseStart, dom_interactive: nav.domInteractive,
+          main_js: entry('/app/main.js').responseEnd,
           positions: entry('/api/positions').responseStart,
           first_render: p.firstDrawnAt, first_pixels: p.firstPixelsAt,
           on_screen: (performance.getEntriesByName('first-contentful-paint')[0] || {startTime: NaN}).startTime,
           body_pixels: p.bodyPixelsAt,
+          marks: Object.fromEntries(performance.getEntriesByType('mark').map(m => [m.name, m.startTime])),
           gl_waits: waits.map(([name, , dt]) => [name, dt])};
 }"""
 
-COLUMNS = ("dom_interactive", "main_js", "positions", "first_render", "first_pixels", "on_screen", "body_pixels",
-           "gl_wait_total")
+COLUMNS = ("request", "response", "dom_interactive", "main_js", "positions", "first_render", "first_pixels",
+           "on_screen", "body_pixels", "gl_wait_total")
 
 
 def one_run(p, base: str, take_id: str) -> dict:
@@ -86,6 +91,7 @@ def one_run(p, base: str, take_id: str) -> dict:
     row["gl_wait_total"] = sum(by_kind.values())
     row["gl_waits_ms"] = dict(by_kind.most_common())
     row["load_average_1min"] = os.getloadavg()[0]
+    row.update({f"mark_{name}": t for name, t in row.pop("marks").items()})
     return row
 
 
@@ -93,35 +99,57 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--runs", type=int, default=3)
     ap.add_argument("--frames", type=int, default=5000)
+    ap.add_argument("--peer", type=Path, help="another checkout to compare with, alternated run by run")
     args = ap.parse_args()
+    import contextlib
+
     from playwright.sync_api import sync_playwright
 
-    from studio import make_take
-    from studio_support import running_studio
+    from studio import make_take, studio_process, unread_copies
 
     tmp = Path(tempfile.mkdtemp(prefix="studio_url_"))
     take = make_take(tmp, args.frames)
-    copies = []
-    for i in range(args.runs):  # each run opens a file the server has not read yet
-        copy = take.with_name(f"unread{i}_{take.name}")
-        copy.write_bytes(take.read_bytes())
-        copies.append(copy)
-    with running_studio([take.parent], units="asf", out=tmp / "out") as base, sync_playwright() as p:
-        rows = [one_run(p, base, f"0/{copy.name}") for copy in copies]
-    print(f"load average (1 min): {os.getloadavg()[0]:.1f}")
+    trees = [ROOT, *([args.peer.resolve()] if args.peer else [])]
+    ids = {tree: unread_copies(take, f"unread{k}_", args.runs) for k, tree in enumerate(trees)}
+    runs = {tree: [] for tree in trees}
+    loads = [os.getloadavg()[0]]
+    with contextlib.ExitStack() as stack, sync_playwright() as p:
+        bases = {tree: stack.enter_context(studio_process(tree, take.parent, tmp / f"out{k}"))
+                 for k, tree in enumerate(trees)}
+        for i in range(args.runs):
+            for tree in trees:
+                runs[tree].append(one_run(p, bases[tree], ids[tree][i]))
+    loads.append(os.getloadavg()[0])
+    rows = runs[ROOT]
+    print(f"load average (1 min): {min(loads):.1f}-{max(loads):.1f}")
     print(f"fresh page on the URL of an unread {args.frames}-frame take; ms from navigation, median of {args.runs}")
-    print("".join(f"{c:>16}" for c in COLUMNS))
+    print("".join(f"{c:>{max(9, len(c) + 1)}}" for c in COLUMNS))
     medians = {c: statistics.median(r[c] for r in rows) for c in COLUMNS}
-    print("".join(f"{medians[c]:>16.0f}" for c in COLUMNS))
+    print("".join(f"{medians[c]:>{max(9, len(c) + 1)}.0f}" for c in COLUMNS))
+    marks = sorted({k for r in rows for k in r if k.startswith("mark_")},
+                   key=lambda k: statistics.median(r.get(k, float("nan")) for r in rows))
+    if marks:  # the page's own performance.mark()s (index.html, main.js), in the order they came
+        print("page marks (ms from navigation, median): " + ", ".join(
+            f"{k[5:]} {statistics.median(r[k] for r in rows if k in r):.0f}" for k in marks))
     kinds = collections.Counter()
     for r in rows:
         kinds.update(r["gl_waits_ms"])
     print("WebGL calls that waited for the GPU process before the first pixels (ms, mean per run): " +
           ", ".join(f"{name} {ms / len(rows):.0f}" for name, ms in kinds.most_common()))
+    peer = None
+    if args.peer:
+        peer = {c: statistics.median(r[c] for r in runs[trees[1]]) for c in COLUMNS}
+        print(f"peer {trees[1]}, medians (alternated run by run with ours):")
+        print("".join(f"{peer[c]:>{max(9, len(c) + 1)}.0f}" for c in COLUMNS))
+        print("ratio ours / peer: " + ", ".join(
+            f"{c} {medians[c] / peer[c]:.2f}" for c in ("positions", "first_render", "first_pixels", "on_screen",
+                                                       "body_pixels")))
     out = ROOT / "benchmarks" / "results" / "studio_url.json"
     out.parent.mkdir(exist_ok=True)
     out.write_text(json.dumps({"frames": args.frames, "medians_ms": medians, "runs": rows,
-                               "load_average_1min": os.getloadavg()[0]}, indent=2))
+                               "peer": None if peer is None else {"tree": str(trees[1]), "medians_ms": peer,
+                                                                  "runs": runs[trees[1]]},
+                               "load_average_1min": os.getloadavg()[0], "load_average_runs": loads}, indent=2))
     print(f"wrote {out.relative_to(ROOT)}")
 
 

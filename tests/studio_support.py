@@ -39,6 +39,22 @@ def make_library(folder: Path) -> Path:
     return lib
 
 
+def cli_error_line(folder: Path, name: str, units: str = "asf") -> str:
+    """What ``usdmotion info NAME --units UNITS``, run in ``folder``, prints for a file it cannot read:
+    the one error line the Studio must show for the same take (exit 2, nothing on stdout)."""
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    proc = subprocess.run([sys.executable, "-m", "usdmotion", "info", name, "--units", units], cwd=folder,
+                          env=env, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2 and not proc.stdout, (proc.returncode, proc.stdout, proc.stderr)
+    lines = proc.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("usdmotion: error: "), proc.stderr
+    return lines[0]
+
+
 @contextlib.contextmanager
 def running_studio(roots: list[Path], units: str | None = "asf", out: Path | None = None):
     """Serve the studio on 127.0.0.1 and a free port; yields the base URL; always stops it."""

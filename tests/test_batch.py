@@ -398,3 +398,57 @@ def test_a_redone_task_removes_only_its_takes_temporaries(tmp_path):
                      {}, {}) for stem in ("walk_part0", "walk"))
     _remove_stale_temporaries(jobs)
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(kept)
+
+
+def test_asf_amc_takes_are_found_and_named_like_the_studio_names_them(tmp_path, shared_file):
+    """An ``.amc`` take (its skeleton the ``.asf`` beside it) is a take of the default batch, its
+    catalogue rig family is the Studio library's (CMU ASF bone names: ``asf``), and its output
+    is byte-identical to ``usdmotion convert``'s."""
+    from usdmotion.studio.library import describe_take
+
+    asf, amc = shared_file("cmu86/86.asf"), shared_file("cmu86/86_01.amc")
+    src, out = tmp_path / "src" / "s86", tmp_path / "out"
+    src.mkdir(parents=True)
+    shutil.copy(asf, src / "86.asf")
+    lines = amc.read_text().splitlines(keepends=True)
+    stop = lines.index("41\n")  # the header and frames 1-40 (an AMC frame starts with its number)
+    (src / "86_01.amc").write_text("".join(lines[:stop]))
+    assert main(["batch", "convert", str(src.parent), str(out), "--workers", "1"]) == 0
+    cat = _catalogue(out)
+    assert list(cat.relpath) == ["s86/86_01.amc"] and list(cat.status) == ["ok"]  # the .asf is no take
+    studio = describe_take(src / "86_01.amc", lambda entry: read_motion(entry))["rig"]
+    assert cat.rig_family[0] == studio == "asf"
+    assert cat.frames[0] == 40
+    assert main(["convert", str(src / "86_01.amc"), str(tmp_path / "86_01.usdc")]) == 0
+    assert (tmp_path / "86_01.usdc").read_bytes() == (out / "s86/86_01.usdc").read_bytes()
+
+
+def test_default_search_finds_what_the_globs_find(library, tmp_path):
+    """The one-walk search for the default globs gives pathlib's answer for the same globs:
+    symlinked files in, symlinked folders not entered, a file linked from the output folder
+    out, upper-case suffixes and folders named like takes out, the output folder inside the
+    source skipped."""
+    from usdmotion.batch.plan import DEFAULT_INCLUDE, MOTION_SUFFIXES, find_sources
+
+    src = tmp_path / "src"
+    shutil.copytree(library, src)
+    out = src / "out"
+    (out / "s").mkdir(parents=True)
+    (out / "s" / "old.bvh").write_text("written by an earlier run")
+    (src / "link.bvh").symlink_to(src / "session2" / "jacks renamed.bvh")
+    (src / "linked_out.bvh").symlink_to(out / "s" / "old.bvh")
+    (src / "linked_folder").symlink_to(src / "session2", target_is_directory=True)
+    (src / "UPPER.BVH").write_text("x")
+    (src / "folder.bvh").mkdir()
+    (src / ".hidden.bvh").write_text("x")
+
+    def by_globs(exclude: Path | None) -> list[Path]:  # the general path: pathlib's glob per pattern
+        found = {p for pattern in DEFAULT_INCLUDE for p in src.glob(pattern)}
+        return sorted(p for p in found if p.is_file() and p.suffix.lower() in MOTION_SUFFIXES
+                      and (exclude is None or not p.resolve().is_relative_to(exclude.resolve())))
+
+    for exclude in (out, None, tmp_path / "elsewhere"):
+        assert find_sources(src, DEFAULT_INCLUDE, exclude) == by_globs(exclude)
+    names = {p.name for p in find_sources(src, DEFAULT_INCLUDE, out)}
+    assert {"link.bvh", ".hidden.bvh"} <= names and not names & {"linked_out.bvh", "old.bvh", "UPPER.BVH"}
+    assert find_sources(src, ("**/*.usda",), out) == [src / "session2" / "walk_head.usda"]

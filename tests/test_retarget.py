@@ -102,6 +102,33 @@ def test_loss_gradient_matches_finite_differences():
             np.testing.assert_allclose(g, fd, rtol=1e-6, atol=1e-7 * np.abs(fd).max())
 
 
+def test_solve_leaves_out_joints_that_move_no_point():
+    """Unmapped branches (fingers, face bones) are cut out of the solve: the same solution
+    on the other joints as the problem without them, and their own rotations and
+    translations returned as given."""
+    from usdmotion.ops.retarget.solve import Problem, needed_joints, solve
+
+    problem, q, t, targets = small_problem()
+    # the same skeleton with an unmapped branch X (child of 1, index 3) -> Y (index 8) inserted
+    old_to_new = np.array([0, 1, 2, 4, 5, 6, 7])
+    parents = np.array([-1, 0, 1, 1, 2, 1, 5, 0, 3])
+    rng = np.random.default_rng(5)
+    q_big, t_big = euler_to_quat(rng.uniform(-1.0, 1.0, (2, 9, 3)), "ZXY"), rng.normal(size=(2, 9, 3))
+    q_big[:, old_to_new], t_big[:, old_to_new] = q, t
+    big = Problem(parents, old_to_new[problem.mapped], problem.weights, old_to_new[problem.rot_joints],
+                  old_to_new[problem.trans_joints], problem.orders)
+    reduced, keep = needed_joints(big)
+    np.testing.assert_array_equal(np.flatnonzero(keep), old_to_new)
+    np.testing.assert_array_equal(reduced.parents, problem.parents)
+    expected, got = solve(problem, q, t, targets), solve(big, q_big, t_big, targets)
+    assert expected.loss.sum() < 0.5 * expected.initial.sum()  # it did solve something
+    np.testing.assert_allclose(got.q[:, old_to_new], expected.q, atol=1e-6)
+    np.testing.assert_allclose(got.t[:, old_to_new], expected.t, atol=1e-6)
+    np.testing.assert_allclose(got.loss, expected.loss, rtol=1e-6)
+    np.testing.assert_allclose(got.q[:, [3, 8]], q_big[:, [3, 8]], atol=1e-12)
+    np.testing.assert_array_equal(got.t[:, [3, 8]], t_big[:, [3, 8]])
+
+
 @pytest.mark.parametrize("trans", [[0], []])
 def test_tree_lm_step_equals_the_dense_solve_of_the_autodiff_jacobian(trans):
     import jax
@@ -136,6 +163,53 @@ def test_tree_lm_step_equals_the_dense_solve_of_the_autodiff_jacobian(trans):
         for make in (make_tree_step, make_dense_step):
             got = np.asarray(jax.jit(make(problem))(world_p, r, jnp.asarray(lam)))
             np.testing.assert_allclose(got, expected, rtol=1e-5, atol=1e-5 * np.abs(expected).max())
+
+
+@pytest.mark.parametrize("trans", [[0], []])
+def test_model_gain_is_the_reduction_of_the_autodiff_linearisation(trans):
+    """The loss reduction Nielsen's damping update compares with (``make_model_gain``) is the
+    Gauss–Newton model's: ``‖r‖² − ‖r + J x‖²`` with ``J`` the autodiff Jacobian of the
+    weighted position residuals, plus the same for world-rotation residuals with the
+    autodiff Jacobian of the world rotations' axis-angle change."""
+    import jax
+    import jax.numpy as jnp
+
+    from usdmotion.ops.retarget.solve import Problem, make_apply, make_model_gain, make_residuals
+    from usdmotion.rotations import quat_log
+
+    problem, q, t, targets = small_problem()
+    problem = Problem(problem.parents, problem.mapped, problem.weights, problem.rot_joints, np.array(trans, int),
+                      problem.orders)
+    rng = np.random.default_rng(7)
+    with jax.enable_x64(True):
+        q, t, targets = (jnp.asarray(a, jnp.float64) for a in (q, t, targets))
+        residuals, apply = make_residuals(problem), make_apply(problem)
+        world_q, world_p, r, _, w = residuals(q, t, targets)
+        sqrt_w = jnp.sqrt(jnp.asarray(problem.weights))
+        rot_j = np.asarray(problem.rot_joints)
+        conj = jnp.asarray([1.0, -1.0, -1.0, -1.0])
+
+        def linear_parts(step):  # (B, 3M) weighted residuals and (B, 3R) world rotation changes
+            q2, t2 = apply(q, t, world_q, step)
+            world_q2, _, r2, _, _ = residuals(q2, t2, targets)
+            turn = quat_log(quat_mul(world_q2[:, rot_j], world_q[:, rot_j] * conj))
+            return (r2 * sqrt_w[:, None]).reshape(2, -1), turn.reshape(2, -1)
+
+        zero = jnp.zeros((2, problem.n_params))
+        jac_p, jac_r = jax.jacfwd(linear_parts)(zero)
+        jac_p = np.stack([np.asarray(jac_p)[b, :, b] for b in range(2)])
+        jac_r = np.stack([np.asarray(jac_r)[b, :, b] for b in range(2)])
+        step = rng.normal(0, 0.2, (2, problem.n_params))
+        rot_r, rot_w = rng.normal(0, 0.3, (2, len(rot_j), 3)), rng.uniform(0.5, 2.0, (2, len(rot_j)))
+        rw = np.asarray(r * sqrt_w[:, None]).reshape(2, -1)
+        moved = np.einsum("bij,bj->bi", jac_p, step)
+        turned = np.einsum("bij,bj->bi", jac_r, step).reshape(2, -1, 3)
+        expected = (np.sum(rw ** 2, -1) - np.sum((rw + moved) ** 2, -1)
+                    + np.einsum("bk,bkc->b", rot_w, rot_r ** 2 - (rot_r + turned) ** 2))
+        got = np.asarray(make_model_gain(problem)(world_p, r, w, jnp.asarray(step), jnp.asarray(rot_r),
+                                                  jnp.asarray(rot_w)))
+        assert np.abs(expected).max() > 1e-2
+        np.testing.assert_allclose(got, expected, rtol=1e-9, atol=1e-9 * np.abs(expected).max())
 
 
 def test_lm_step_drops_only_the_invisible_twist():

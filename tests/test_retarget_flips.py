@@ -13,6 +13,8 @@ import warnings
 import numpy as np
 import pytest
 
+from usdmotion.kinematics import fk_arrays
+
 WALK = "cmu/cgspeed_12_01_walk.bvh"
 DAZ = "cmu/daz_10_01_soccer_kick.bvh"
 
@@ -85,3 +87,107 @@ def test_single_point_bones_point_at_their_target(walk_onto_daz):
         want = src[:, source.joint_names.index(pairs[finger])] - world[:, h]
         cos = np.einsum("fk,fk->f", bone, want) / (np.linalg.norm(bone, axis=1) * np.linalg.norm(want, axis=1))
         assert np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))).max() < 1e-3, hand
+
+
+# --------------------------------------------- the contact solve's legs (leg_ik), synthetic legs
+
+
+def _straight_leg(n: int, seed: int):
+    """A hip 90 above a floor at 0, a straight 80-long leg whose knee bends by 0.3° about a
+    random axis in every frame (a solve's nearly straight knee: its bend direction is noise),
+    and an ankle planted at height 9 swaying 0–15 to the front: out of reach, so the root
+    comes down and the IK must bend the knee further than solved."""
+    parents = np.array([-1, 0, 1, 2])  # root, hip, knee, ankle
+    offsets = np.array([[0, 0, 0], [10, -5, 0], [0, -40, 0], [0, -40, 0.0]])
+    rng = np.random.default_rng(seed)
+    q = np.zeros((n, 4, 4))
+    q[..., 0] = 1.0
+    phi = rng.uniform(0, 2 * np.pi, n)
+    axis = np.stack([np.cos(phi), np.zeros(n), np.sin(phi)], axis=1)  # across the bone (which is along -Y)
+    half = np.radians(0.3) / 2
+    q[:, 2] = np.c_[np.full(n, np.cos(half)), np.sin(half) * axis]
+    t = np.broadcast_to(offsets, (n, 4, 3)).copy()
+    t[:, 0] = (0, 95, 0)
+    planted = np.zeros((n, 1, 3))
+    planted[:, 0] = (10, 9, 0)
+    planted[:, 0, 2] = 7.5 - 7.5 * np.cos(np.linspace(0, 2 * np.pi, n))
+    return parents, offsets, q, t, planted
+
+
+def _angle_steps(q: np.ndarray) -> np.ndarray:
+    """``(F-1,)`` degrees between consecutive rotations ``q (F, 4)``."""
+    return np.degrees(2 * np.arccos(np.abs(np.sum(q[1:] * q[:-1], axis=-1)).clip(0, 1)))
+
+
+def test_leg_ik_knee_keeps_its_hinge_where_the_solved_leg_is_straight():
+    """Cause (walk -> legs 0.8x frame 12: hip 7.7°/7.5, knee 13.3°/12.6): the knee's bend plane
+    came from the solved knee's offset off the hip -> ankle line, noise where the solved leg is
+    straight, so a knee the IK bends further (the root came down) swung with it; fixed by the
+    take's mean hinge axis in the thigh's frame (leg_ik.knee_hinge_bend). Independent check: with
+    a stable bend plane the knee turns by the change of its flexion angle, found here from the
+    hip -> ankle distance by the law of cosines, plus the solved knee's own steps."""
+    from usdmotion.ops.retarget.leg_ik import legs_of, place_legs
+
+    parents, offsets, q, t, planted = _straight_leg(60, 5)
+    legs = legs_of(parents, np.array([3]), ("left_ankle",), offsets, 0)
+    contact = np.ones((60, 1), bool)
+    q2, t2, drop = place_legs(q, t, parents, 0, legs, planted, contact, np.array([9.0]), 1, 120.0, -10.0)
+    world = fk_arrays(q2, t2, parents)[1]
+    assert drop.min() > 0.5  # the root came down: the IK bends the knee
+    np.testing.assert_allclose(world[:, 3], planted[:, 0], atol=1e-9)
+    d = np.linalg.norm(world[:, 3] - world[:, 1], axis=-1)
+    flexion = np.degrees(np.pi - np.arccos(np.clip((40.0 ** 2 + 40.0 ** 2 - d ** 2) / (2 * 40.0 * 40.0), -1, 1)))
+    allowed = np.abs(np.diff(flexion)) + 2 * _angle_steps(q[:, 2]).max()
+    assert np.all(_angle_steps(q2[:, 2]) <= allowed + 1e-6), (_angle_steps(q2[:, 2]).max(), allowed.max())
+
+
+def test_leg_ik_one_frame_hip_spike_leaves_the_knee_alone():
+    """Cause (86_01 -> Rokoko frame 430: RightLeg 11.1°/10.9): the solved hips rose 7 mm for one
+    frame while the planted leg was at full reach, so the knee straightened 11° and back; fixed
+    by the root taking such a spike (leg_ik.hip_spikes). Independent check: the lowered hip's
+    height (FK of the result) has no one-frame spike, and the knee steps no more than elsewhere."""
+    from usdmotion.ops.retarget.leg_ik import legs_of, place_legs
+
+    n = 60
+    parents, offsets, q, t, planted = _straight_leg(n, 6)
+    q[:, 2] = (np.cos(np.radians(10)), np.sin(np.radians(10)), 0, 0)  # a bent knee (20°): a clear hinge
+    t[:, 0, 1] = 95.0 + np.linspace(0, 1, n)  # the hips rise slowly ...
+    t[30, 0, 1] += 0.7  # ... and jump 0.7 up at one frame
+    legs = legs_of(parents, np.array([3]), ("left_ankle",), offsets, 0)
+    q2, t2, drop = place_legs(q, t, parents, 0, legs, planted, np.ones((n, 1), bool), np.array([9.0]), 1, 120.0,
+                              -10.0)
+    world = fk_arrays(q2, t2, parents)[1]
+    np.testing.assert_allclose(world[:, 3], planted[:, 0], atol=1e-9)
+    hip = world[:, 1, 1]
+    second = np.abs(hip[2:] - 2 * hip[1:-1] + hip[:-2])
+    assert second.max() < 0.2, second.max()  # 1.3 without: the spike went into the leg
+    knee = _angle_steps(q2[:, 2])
+    assert knee[28:31].max() <= 2 * np.delete(knee, range(27, 32)).max(), knee[26:33]
+
+
+def test_step_limit_of_a_joint_whose_source_chain_the_target_lacks():
+    """Mixamo's Spine follows CMU's Spine, but its parent (Hips) follows CMU's Hips with
+    LowerBack between them: the target's local rotation carries LowerBack's turn too, so the
+    rotation it follows is LowerBack · Spine (jumps -> Mixamo: a 4.7° jerk of the source hips
+    split 3.0 / 1.7 between LowerBack and Spine had made a limit of 2 × 1.7°). Independent
+    check: the composed local rotations of the source, on the walk with LowerBack removed."""
+    from conftest import shared_path
+
+    from usdmotion.io import read_motion
+    from usdmotion.ops.retarget.pipeline import prepare
+    from usdmotion.ops.retarget.quality import STEP_FLOOR_DEG, step_limits
+    from usdmotion.rotations import quat_mul
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        walk = read_motion(shared_path(WALK), units="asf")
+    walk = walk.with_frames(walk.rotations[1:], walk.root_translation[1:], None)  # frame 0: a T-pose
+    setup = prepare(walk, remove=("LowerBack",))
+    limits = dict(zip(setup.rig.joint_names, step_limits(walk, setup)))
+    rot = {n: walk.rotations[:, walk.joint_names.index(n)] for n in ("LowerBack", "Spine", "LeftLeg", "Spine1")}
+    composed = 2 * largest_steps(quat_mul(rot["LowerBack"], rot["Spine"])[:, None])[0]
+    own = 2 * largest_steps(rot["Spine"][:, None])[0]
+    assert abs(composed - own) > 0.5  # the rule changes this joint's limit
+    assert limits["Spine"] == pytest.approx(max(composed, STEP_FLOOR_DEG), rel=1e-9)
+    for name in ("LeftLeg", "Spine1"):  # chains the target keeps: the joint's own local rotation
+        assert limits[name] == pytest.approx(max(2 * largest_steps(rot[name][:, None])[0], STEP_FLOOR_DEG), rel=1e-9)

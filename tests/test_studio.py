@@ -10,7 +10,7 @@ from urllib.parse import quote
 import numpy as np
 import pytest
 
-from studio_support import MOVE, SHIFT, TURN_DEG, WALK, make_library, raw_get, running_studio
+from studio_support import MOVE, SHIFT, TURN_DEG, WALK, cli_error_line, make_library, raw_get, running_studio
 from usdmotion.io import read_motion
 from usdmotion.kinematics import joint_positions
 
@@ -40,7 +40,10 @@ def test_library_lists_takes_and_the_malformed_file_with_its_error(studio):
                                           "duration_s": pytest.approx(walk.duration), "rig": "cmu_cgspeed",
                                           "height_m": pytest.approx(1.4258, abs=1e-3)}
     assert meta["meta"]["0/session2/walk_turned.usda"]["frames"] == walk.n_frames - SHIFT
-    assert meta["meta"]["0/broken.bvh"] == {"error": "broken.bvh:4:3: OFFSET has 2 values, expected 3"}
+    # the line `usdmotion info broken.bvh` prints in the library's folder
+    line = cli_error_line(lib, "broken.bvh")
+    assert line == "usdmotion: error: broken.bvh:4:3: OFFSET has 2 values, expected 3"
+    assert meta["meta"]["0/broken.bvh"] == {"error": line}
     # the server keeps answering after the bad file
     assert get_json(base, "/api/skeleton?take=0/broken.bvh") == (422, {"error": meta["meta"]["0/broken.bvh"]["error"]})
     assert get_json(base, "/api/takes")[0] == 200
@@ -57,6 +60,21 @@ def test_library_lists_takes_and_the_malformed_file_with_its_error(studio):
 def test_outside_the_roots_is_not_found(studio, target):
     status, _ = raw_get(studio[0], target)
     assert status == 404
+
+
+def test_a_missing_take_gets_the_line_of_its_reader_and_nothing_outside_is_told(studio):
+    """A take that is not there: the line `usdmotion info` prints for that name in the library's
+    folder (each reader words it its own way); an id out of the roots: only "not found"."""
+    base, lib = studio
+    for name in ("missing.bvh", "session2/missing.usda"):
+        status, body = get_json(base, f"/api/skeleton?take=0/{quote(name)}")
+        assert (status, body["error"]) == (404, cli_error_line(lib, name))
+        assert get_json(base, f"/api/meta?id=0/{quote(name)}")[1]["meta"][f"0/{name}"] == {"error": body["error"]}
+    assert get_json(base, "/api/skeleton?take=0/session2/missing.usda")[1]["error"].endswith("no such file")
+    for take, shown in [("0/../../outside.bvh", "0/../../outside.bvh"), ("0/escape.bvh", "escape.bvh"),
+                        ("3/walk.bvh", "3/walk.bvh")]:  # a malformed id is shown whole
+        status, body = get_json(base, f"/api/skeleton?take={quote(take)}")
+        assert (status, body["error"]) == (404, f"usdmotion: error: {shown}: not found")
 
 
 def test_scripts_are_revalidated_not_refetched(studio):
@@ -167,7 +185,7 @@ def test_a_linked_page_starts_reading_its_take(tmp_path, monkeypatch):
         for bad in ("0/missing.bvh", "0/broken.bvh", "0/../../outside.bvh", "0/escape.bvh"):
             assert raw_get(base, f"/?take={bad}")[0] == 200
         assert get_json(base, "/api/skeleton?take=0/broken.bvh") == (
-            422, {"error": "broken.bvh:4:3: OFFSET has 2 values, expected 3"})
+            422, {"error": "usdmotion: error: broken.bvh:4:3: OFFSET has 2 values, expected 3"})
         assert computed == [walk.n_frames]  # nothing read out of the root
 
 
@@ -236,7 +254,8 @@ def test_a_huge_file_is_listed_with_an_error_and_not_read(studio, monkeypatch):
         _, meta = get_json(base, "/api/meta?id=0/huge/long.bvh")
         size = WALK.stat().st_size
         assert meta["meta"]["0/huge/long.bvh"] == {
-            "error": f"huge/long.bvh: file is {size:,} bytes; the studio reads files up to 100,000 bytes"}
+            "error": f"usdmotion: error: huge/long.bvh: file is {size:,} bytes; the studio reads files up to "
+                     "100,000 bytes"}
         assert get_json(base, "/api/positions?take=0/huge/long.bvh")[0] == 422
         assert get_json(base, "/api/takes")[0] == 200
     finally:

@@ -220,8 +220,9 @@ def test_export_of_the_detectors_cuts_is_the_clis(studio86, tmp_path, capsys):
 def test_errors_are_one_line_and_the_server_keeps_running(studio_errors):
     base, lib, _ = studio_errors
     status, answer = request(base, "GET", "/api/segment/signal?take=0/legs.bvh")
-    assert status == 422 and re.fullmatch(r"legs\.bvh: cannot find the joints for role\(s\) [^\n]*left_elbow[^\n]*",
-                                          answer["error"]), answer
+    assert status == 422 and re.fullmatch(
+        r"usdmotion: error: legs\.bvh: cannot find the joints for role\(s\) [^\n]*left_elbow[^\n]*",
+        answer["error"]), answer
     for detector, word in [({"penalty": -1}, "penalty"), ({"min_length": "long"}, "min length"),
                            ({"method": "heuristic", "param": 1.5}, "param"), ({"method": "ppca"}, "detector"),
                            ({"method": "heuristic", "cutoff": 0}, "cutoff"), ({"cutoff": float("nan")}, "cutoff"),
@@ -421,9 +422,11 @@ def test_panel_errors_show_one_line_in_the_page(studio_errors, page):
     base, lib, _ = studio_errors
     open_editor(page, base, "0/legs.bvh", wait_cuts=False)
     page.wait_for_selector("#seg-status.error-text", timeout=30_000)
-    assert re.fullmatch(r"legs\.bvh: cannot find the joints for role\(s\) .*", page.inner_text("#seg-status"))
+    assert re.fullmatch(r"usdmotion: error: legs\.bvh: cannot find the joints for role\(s\) .*",
+                        page.inner_text("#seg-status"))
     page.click("#seg-run")  # the detector says the same, in one line
-    page.wait_for_function("document.querySelector('#seg-status').textContent.startsWith('legs.bvh: cannot')")
+    page.wait_for_function("document.querySelector('#seg-status').textContent"
+                           ".startsWith('usdmotion: error: legs.bvh: cannot')")
     # a saved file that does not validate: its error, and the detector's cuts instead
     open_editor(page, base, "0/walk2.bvh", wait_cuts=False)
     page.wait_for_selector("#seg-status.error-text", timeout=30_000)

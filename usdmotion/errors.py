@@ -54,3 +54,27 @@ class OutputError(UsdMotionError):
 
 class UsdMotionWarning(UserWarning):
     """A recoverable problem in the input (e.g. ``--lenient`` dropped rows)."""
+
+
+#: What the CLI reports as bad input (exit 2): the library's own errors and the standard ones a
+#: reader or an option check raises. Anything else is a bug (``internal error``, exit 1).
+INPUT_ERRORS = (UsdMotionError, ValueError, KeyError, OSError, MemoryError)
+
+
+def error_message(exc: BaseException) -> str:
+    """The one line ``usdmotion`` reports for ``exc`` after ``usdmotion: error:``: its message's
+    first line (a ``KeyError``'s key without quotes; the type's name for an empty message), or
+    ``internal error (Type: line)`` for an exception that is not one of :data:`INPUT_ERRORS`.
+
+    The CLI (:func:`usdmotion.cli.main`) and the Studio (library rows, takes that fail, jobs) both
+    print this line, so a file gives the same line in both."""
+    text = str(exc.args[0] if isinstance(exc, KeyError) and exc.args else exc)
+    line = text.splitlines()[0] if text.strip() else type(exc).__name__
+    if not isinstance(exc, INPUT_ERRORS):
+        return f"internal error ({type(exc).__name__}: {line if str(exc) else ''})"
+    return line
+
+
+def error_line(exc: BaseException) -> str:
+    """``usdmotion: error: `` and :func:`error_message`: the whole line the CLI prints."""
+    return f"usdmotion: error: {error_message(exc)}"

@@ -39,16 +39,26 @@ def schema():
 def read_catalogue(path: str | Path) -> dict[tuple[str, str], dict]:
     """Rows of an existing catalogue by ``(operation, take)``; empty when there is none
     (or it cannot be read: the batch then redoes every take)."""
+    path = Path(path)
+    if not path.is_file():  # a first run: no pyarrow import (0.15 s) before the first takes
+        return {}
     import pyarrow.parquet as pq
 
-    path = Path(path)
-    if not path.is_file():
-        return {}
     try:
         rows = pq.read_table(path).to_pylist()
     except Exception:  # noqa: BLE001 - an unreadable catalogue only costs a full re-run
         return {}
     return {(r.get("operation"), r.get("take")): r for r in rows}
+
+
+def load_arrow() -> None:
+    """Import what :func:`write_catalogue` needs: ``pyarrow.parquet``, and pandas, which
+    pyarrow imports on its first conversion of Python values (0.35 s of CPU in all). A run
+    calls this in a thread while the workers run, so that its catalogue save does not."""
+    import pyarrow as pa
+    import pyarrow.parquet  # noqa: F401
+
+    pa.array([], pa.string())
 
 
 def write_catalogue(rows: dict[tuple[str, str], dict], path: str | Path) -> Path:

@@ -214,10 +214,22 @@ def prepare_worker(operation: str) -> None:
     gc.freeze()
 
 
+def run_task(jobs: tuple[Job, ...]) -> list[dict]:
+    """One Dask task: :func:`prepare_worker` for the jobs' operation (at once when the worker
+    is ready), then :func:`~usdmotion.batch.tasks.run_group`. A worker's first task prepares it,
+    so the run needs no warm-up round trip before its first takes (every worker gets a task at
+    the start and prepares itself in parallel; one started or restarted later, on its first)."""
+    from usdmotion.batch.tasks import run_group
+
+    if jobs:
+        prepare_worker(jobs[0].operation)
+    return run_group(jobs)
+
+
 def warm_up(client, operation: str) -> None:
     """:func:`prepare_worker` on every worker now, as a task pinned to each (in the thread
-    where its takes run), so the first takes do not pay for imports and first-use caches one
-    after another (workers that join later pay on their first take)."""
+    where its takes run), and wait for them: what each worker's first task would do, done
+    before a clock starts (the benchmark) or a check (tests)."""
     import uuid
 
     from distributed import wait
@@ -249,16 +261,19 @@ def run_jobs(client, jobs: list[Job], task_bytes: int = 0) -> Iterator[dict]:
     from distributed import as_completed
 
     from usdmotion.batch.plan import group_jobs
-    from usdmotion.batch.tasks import run_group
 
     run = uuid.uuid4().hex[:8]
 
-    def submit(group: tuple[Job, ...]):
-        first = group[0]
-        key = f"usdmotion-{first.operation}-{first.take}-{len(group)}-{run}"
-        return client.submit(run_group, group, key=key, pure=False)
+    def key(group: tuple[Job, ...]) -> str:
+        return f"usdmotion-{group[0].operation}-{group[0].take}-{len(group)}-{run}"
 
-    futures = {submit(group): group for group in group_jobs(list(jobs), worker_slots(client), task_bytes)}
+    def submit(group: tuple[Job, ...]):
+        return client.submit(run_task, group, key=key(group), pure=False)
+
+    groups = group_jobs(list(jobs), worker_slots(client), task_bytes)
+    # one graph for all the tasks: one message to the scheduler and one update of its state,
+    # not one per task (the client's process shares the cores with the workers)
+    futures = dict(zip(client.map(run_task, groups, key=[key(g) for g in groups], pure=False), groups))
     done = as_completed(futures)
     try:
         for future in done:

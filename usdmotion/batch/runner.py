@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import contextlib
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from usdmotion.batch.catalogue import read_catalogue, write_catalogue
+from usdmotion.batch.catalogue import load_arrow, read_catalogue, write_catalogue
 from usdmotion.batch.plan import CATALOGUE, DEFAULT_INCLUDE, TASK_BYTES, plan_jobs, up_to_date
 from usdmotion.progress import Progress, no_progress
 
@@ -58,7 +59,7 @@ def run_batch(operation: str, src_dir: str | Path, out_dir: str | Path, read_opt
     catalogue is saved every :data:`SAVE_EVERY_S` seconds, at the end, and on Ctrl-C
     (atomically each time).
     """
-    from usdmotion.batch.engine import dask_client, run_jobs, warm_up
+    from usdmotion.batch.engine import dask_client, run_jobs
 
     start = time.perf_counter()
     out_dir = Path(out_dir)
@@ -71,19 +72,37 @@ def run_batch(operation: str, src_dir: str | Path, out_dir: str | Path, read_opt
     if todo:
         with contextlib.nullcontext(client) if client is not None else dask_client(workers, scheduler) as dask:
             out_dir.mkdir(parents=True, exist_ok=True)  # only once the cluster is there (bad --scheduler: no output)
-            saved = time.perf_counter()
+            saved, arrow = time.perf_counter(), None
             try:
-                warm_up(dask, operation)
                 for row in run_jobs(dask, todo, TASK_BYTES[operation] if task_bytes is None else task_bytes):
+                    if arrow is None:  # the workers are busy: the catalogue's imports meanwhile, not after them
+                        arrow = _start_thread(load_arrow)
                     rows[(row["operation"], row["take"])] = row
                     result.rows.append(row)
                     progress(len(result.rows), len(todo), f"batch {operation}: {row['relpath']}")
                     if on_row is not None:
                         on_row(row)
                     if time.perf_counter() - saved > SAVE_EVERY_S:
+                        arrow.join()
                         write_catalogue(rows, path)
                         saved = time.perf_counter()
             finally:
+                if arrow is not None:
+                    arrow.join()
                 write_catalogue(rows, path)
     result.seconds = time.perf_counter() - start
     return result
+
+
+def _start_thread(target: Callable[[], None]) -> threading.Thread:
+    """``target()`` in a daemon thread; its exceptions are dropped (the work it prepares, done
+    again where it is needed, reports them there)."""
+    def run() -> None:
+        try:
+            target()
+        except Exception:  # noqa: BLE001 - see above
+            pass
+
+    thread = threading.Thread(target=run, name=f"usdmotion-{target.__name__}", daemon=True)
+    thread.start()
+    return thread

@@ -60,6 +60,8 @@ def _make_folders(job: Job) -> list[Path]:
     """Create the output folders; return those that did not exist (deepest first)."""
     created = []
     for folder in sorted({Path(p).parent for p in job.outputs.values()}):
+        if folder.is_dir():  # the usual case after a folder's first take: one stat, not one per parent
+            continue
         missing = [f for f in (folder, *folder.parents) if not f.exists()]
         folder.mkdir(parents=True, exist_ok=True)
         created.extend(missing)
@@ -130,14 +132,15 @@ def _read(job: Job):
 
 
 def motion_facts(motion) -> dict:
-    """Catalogue columns describing a motion (joints, frames, rig family, units...)."""
+    """Catalogue columns describing a motion (joints, frames, rig family, units...). The rig family
+    is the Studio library's (:func:`usdmotion.skeleton_names.rig_family`: CMU ASF takes are ``asf``)."""
     import numpy as np
 
-    from usdmotion.skeleton_names import detect_profile
+    from usdmotion.skeleton_names import rig_family
     from usdmotion.summary import unit_name
 
     real = tuple(n for n, end in zip(motion.joint_names, motion.end_sites) if not end)
-    return {"rig_family": detect_profile(real), "joints": len(real),
+    return {"rig_family": rig_family(real), "joints": len(real),
             "end_sites": int(np.count_nonzero(motion.end_sites)),
             "frames": motion.n_frames, "fps": float(motion.fps), "duration_s": float(motion.duration),
             "meters_per_unit": float(motion.meters_per_unit), "units": unit_name(motion.meters_per_unit),

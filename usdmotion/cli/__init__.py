@@ -24,7 +24,6 @@ import threading
 import warnings
 
 from usdmotion.cli.app import app
-from usdmotion.errors import UsdMotionError
 
 _COMMAND_ORDER = ("convert", "info", "positions")
 #: Help panels by command module (``usdmotion --help`` groups commands by what they are for).
@@ -109,7 +108,7 @@ def main(argv: list[str] | None = None) -> int:
     """Run the CLI; returns the exit code (0 ok, 1 checks failed / internal error, 2 bad input)."""
     import typer
 
-    from usdmotion.errors import UsdMotionError
+    from usdmotion.errors import INPUT_ERRORS, error_message
 
     debug = bool(os.environ.get("USDMOTION_DEBUG"))
     previous = warnings.showwarning
@@ -135,22 +134,15 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     except KeyboardInterrupt:
         return _interrupted()
-    except UsdMotionError as exc:
+    except INPUT_ERRORS as exc:
         if debug:
             raise
-        _error(str(exc).splitlines()[0])
-        return 2
-    except (ValueError, KeyError, OSError, MemoryError) as exc:
-        if debug:
-            raise
-        text = exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc)
-        _error(f"{str(text).splitlines()[0] if str(text) else type(exc).__name__}")
+        _error(error_message(exc))
         return 2
     except Exception as exc:  # a bug: still one line, non-zero
         if debug:
             raise
-        _error(f"internal error ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}); "
-               "rerun with USDMOTION_DEBUG=1 for a traceback")
+        _error(f"{error_message(exc)}; rerun with USDMOTION_DEBUG=1 for a traceback")
         return 1
     finally:
         warnings.showwarning = previous

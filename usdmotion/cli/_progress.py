@@ -18,9 +18,10 @@ from usdmotion.progress import Progress
 
 @contextlib.contextmanager
 def progress(description: str, total: float | None = None, delay: float = 1.0,
-             unit: str = "") -> Iterator[Progress]:
+             unit: str = "", refresh_per_second: float = 10) -> Iterator[Progress]:
     """Yield ``report(current, total, message)`` (a :class:`~usdmotion.progress.Progress`); a rich
-    bar (or spinner, while the total is unknown) is drawn on stderr once ``delay`` seconds have passed.
+    bar (or spinner, while the total is unknown) is drawn on stderr once ``delay`` seconds have passed,
+    redrawn ``refresh_per_second`` times a second (each redraw costs CPU in this process).
 
     ``description`` is shown until a report brings a message. Nothing is drawn when stderr is
     not a terminal (logs, pipes, CI) or the work is short.
@@ -44,7 +45,7 @@ def progress(description: str, total: float | None = None, delay: float = 1.0,
         with lock:
             if state["done"]:  # the work finished while rich was being imported
                 return
-            bar = Bar(*columns, console=console, transient=True)
+            bar = Bar(*columns, console=console, transient=True, refresh_per_second=refresh_per_second)
             task = bar.add_task(state["description"], total=state["total"], completed=state["completed"],
                                 rate=state["rate"])
             shown[:] = [bar, task]

@@ -26,7 +26,9 @@ def render(
     speed: Annotated[float, Opt(help="Playback speed (0.25 = 4x slow motion).")] = 1.0,
     camera: Annotated[str, Opt(help="Preset (side, front, top, follow, orbit) or a USD camera: "
                                     "cam.usda[:/Path/To/Camera].")] = "side",
-    style: Annotated[str, Opt(help="body, stick or both.")] = "body",
+    style: Annotated[str, Opt(help="body, stick or both (a translucent body around the stick figure).")] = "body",
+    focus: Annotated[str | None, Opt(help="Joints the camera preset frames, comma-separated (a close-up: "
+                                          "--focus Foot_L,Toes_L); default the whole body.")] = None,
     body: Annotated[str, Opt(help="auto (the input's own skinned mesh if it has one), stage or generated "
                                   "(usdmotion's capsule body).")] = "auto",
     grid: Annotated[bool, Opt(help="Draw the ground grid.")] = True,
@@ -67,7 +69,8 @@ def render(
                             style=style, grid=grid, grid_scale=grid_scale, traces=tuple(trace or ()),
                             overlay=overlay, compare_mode=compare_mode, shadows=shadows, msaa=msaa, fxaa=fxaa, quality=quality,
                             labels=(source.name, compare.name if compare else ""), angles=tuple(angle or ()),
-                            align=align, panel=panel, layout=layout, contact_shadow=contact_shadow, body=body)
+                            align=align, panel=panel, layout=layout, contact_shadow=contact_shadow, body=body,
+                            focus=tuple(n.strip() for n in focus.split(",") if n.strip()) if focus else ())
     check_options(options)  # every option before any work
     if strobe is None and strobe_every is None:
         check_output(output, width, height)
@@ -78,10 +81,9 @@ def render(
 
         if other is not None:
             raise ValueError("--strobe draws one take: leave out --compare")
-        unused = [name for name, given in (("--trace", trace), ("--angle", angle), ("--panel", panel),
-                                           ("--layout", layout), ("--style", style != "body")) if given]
+        unused = [name for name, given in (("--angle", angle), ("--panel", panel), ("--layout", layout)) if given]
         if unused:
-            raise ValueError(f"--strobe draws the body's poses only: leave out {', '.join(unused)}")
+            raise ValueError(f"--strobe draws poses and traces only: leave out {', '.join(unused)}")
         shown = render_strobe(motion, output, options, strobe, strobe_every)
         typer.echo(f"wrote {output}: {len(shown)} poses, frames {shown[0]}-{shown[-1]}, {width}x{height}")
         return

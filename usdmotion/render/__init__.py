@@ -28,6 +28,7 @@ from usdmotion.render.output import WriterThread, check_output, open_writer
 from usdmotion.render.overlay import warm_up_text
 from usdmotion.render.panel import parse_panel, strip_height
 from usdmotion.render.scene import to_render_space
+from usdmotion.render.traces import check_traces
 from usdmotion.skin import body_size
 
 STYLES = ("body", "stick", "both")
@@ -64,6 +65,7 @@ class RenderOptions:
     layout: str | None = None
     contact_shadow: bool = True
     lod: bool = True  # fewer body triangles when the body is drawn small (usdmotion.render.lod); False: all
+    focus: tuple[str, ...] = ()  # joints a preset camera frames (a close-up); () = the whole body
 
 
 @dataclass(frozen=True)
@@ -146,6 +148,8 @@ def check_options(options: RenderOptions) -> None:
 
     for name in camera_names(options):
         check_camera(name)
+        if options.focus and is_usd_camera(name):
+            raise UsdMotionError(f"--focus aims a preset (side, path, front, ...); leave it out with {name}")
     for name, value in (("start", options.start), ("stop", options.end)):
         if value is not None and value < 0:
             raise UsdMotionError(f"--frames: {name} {value} is negative; frames count from 0 "
@@ -173,12 +177,7 @@ def render_joints(motion: Motion, frames: np.ndarray) -> np.ndarray:
 def plan_render(motion: Motion, options: RenderOptions, other: Motion | None = None) -> RenderPlan:
     """Frames, times and camera of a render (no GL needed; tests project joints with it)."""
     check_options(options)
-    for name in options.traces:
-        if name.lower() not in ("com", "centre_of_mass", "center_of_mass"):
-            try:
-                motion.joint_index(name)
-            except KeyError as exc:
-                raise UsdMotionError(f"--trace: {exc.args[0]}") from None
+    check_traces(motion, options.traces)
     if other is None and options.align != "start":
         raise UsdMotionError("--align needs --compare OTHER")
     if options.angles:
@@ -187,7 +186,7 @@ def plan_render(motion: Motion, options: RenderOptions, other: Motion | None = N
     frames, times, fps = output_frames(motion, options)
     other_frames = None
     joints = [to_render_space(_joint_positions(motion, frames), motion.meters_per_unit, motion.up_axis)]
-    pad = 0.08 * body_size(motion) * motion.meters_per_unit
+    pad = framing_pad(motion, options)
     alignment = None
     if other is not None:
         if other.n_frames == 0:
@@ -195,7 +194,7 @@ def plan_render(motion: Motion, options: RenderOptions, other: Motion | None = N
         alignment = align_takes(motion, other, frames, times, options.align, render_joints)
         other_frames = alignment.frames
         joints.append(render_joints(other, other_frames) @ alignment.turn.T + alignment.shift)
-        pad = max(pad, 0.08 * body_size(other) * other.meters_per_unit)
+        pad = max(pad, framing_pad(other, options))
     side = other is not None and options.compare_mode == "side"
     strip = 0
     if options.panel:
@@ -210,10 +209,27 @@ def plan_render(motion: Motion, options: RenderOptions, other: Motion | None = N
         if is_usd_camera(name):
             cameras.append(usd_camera_track(name, times))
         else:
-            cameras.append(preset_track(name, np.concatenate(joints, axis=1), times, panel[0] / panel[1], pad))
+            cameras.append(preset_track(name, np.concatenate(joints, axis=1), times, panel[0] / panel[1], pad,
+                                        frame=focus_joints(motion, options.focus)))
     ground = min(0.0, float(min(j[..., 1].min() for j in joints)))
     return RenderPlan(frames, other_frames, times, fps, cameras[0], panel, ground, alignment,
                       tuple(cameras) if options.layout else (), (rows, cols))
+
+
+def framing_pad(motion: Motion, options: RenderOptions) -> float:
+    """Metres a preset camera's box around the joints is widened by to hold the flesh: 8 % of
+    the body's size, 4 % around ``--focus`` joints (a close-up)."""
+    return (0.04 if options.focus else 0.08) * body_size(motion) * motion.meters_per_unit
+
+
+def focus_joints(motion: Motion, names: tuple[str, ...]) -> np.ndarray | None:
+    """Indices ``(K,)`` of the ``--focus`` joints of ``motion`` (``None``: no focus, the whole body)."""
+    if not names:
+        return None
+    try:
+        return np.array([motion.joint_index(name) for name in names], dtype=np.int64)
+    except KeyError as exc:
+        raise UsdMotionError(f"--focus: {exc.args[0]}") from None
 
 
 def parse_layout(text: str | None) -> tuple[int, int]:

@@ -86,10 +86,12 @@ def forward_direction(root: np.ndarray, height: float) -> np.ndarray:
 
 
 def preset_track(name: str, joints: np.ndarray, times: np.ndarray, aspect: float, pad: float,
-                 presets: dict[str, dict] | None = None) -> CameraTrack:
+                 presets: dict[str, dict] | None = None, frame: np.ndarray | None = None) -> CameraTrack:
     """The camera of preset ``name`` for joint paths ``joints (N, J, 3)`` at ``times (N,)`` s.
 
-    ``pad`` (metres) widens the joints' bounding box to hold the body's flesh.
+    ``pad`` (metres) widens the joints' bounding box to hold the body's flesh; ``frame``:
+    indices of the joints whose box is framed (default: all; ``--focus``, a close-up). The
+    travel direction and a follow camera's path are the root's (joint 0) in either case.
     """
     presets = load_presets() if presets is None else presets
     if name not in presets:
@@ -110,7 +112,8 @@ def preset_track(name: str, joints: np.ndarray, times: np.ndarray, aspect: float
         local = joints - root[:, None] * np.array([1.0, 0.0, 1.0])
     else:
         local = joints
-    lo, hi = local.reshape(-1, 3).min(axis=0) - pad, local.reshape(-1, 3).max(axis=0) + pad
+    boxed = local if frame is None else local[:, np.asarray(frame, dtype=np.int64)]
+    lo, hi = boxed.reshape(-1, 3).min(axis=0) - pad, boxed.reshape(-1, 3).max(axis=0) + pad
     corners = np.stack(np.meshgrid(*zip(lo, hi), indexing="ij"), axis=-1).reshape(-1, 3)
     centre = 0.5 * (lo + hi)
     azimuth = np.radians(float(p.get("azimuth", 90)) + float(p.get("orbit", 0.0)) * (times - times[0]))

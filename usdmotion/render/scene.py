@@ -76,9 +76,10 @@ class StickFigure:
                  sphere_f[None] + n_b * pv + sv * np.arange(n_j)[:, None, None]]
         self.faces = np.concatenate([f.reshape(-1, 3) for f in faces])
         colors = np.concatenate([np.tile(bone_color, (n_b * pv, 1)), np.tile(joint_color, (n_j * sv, 1))])
+        self.colors = colors.astype(np.float32)  # (V, C) per vertex: bones', then joints'
         positions, normals = self.geometry(np.zeros((len(parents), 3)) + np.arange(len(parents))[:, None] * 0.01)
         self.dynamic = DynamicMesh(positions, normals, self.faces, material((1.0, 1.0, 1.0, 1.0)),
-                                   colors=colors.astype(np.float32))
+                                   colors=self.colors)
 
     def geometry(self, joints: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(positions, normals)`` of the whole figure for joint positions ``(J, 3)``."""

@@ -19,10 +19,10 @@ from usdmotion.render.lod import detail, fewer_triangles, pixel_height
 from usdmotion.render.overlay import draw_text
 from usdmotion.render.panel import PlotStrip, panel_series, parse_panel, strip_height
 from usdmotion.render.shadow import ContactShadow
-from usdmotion.skin import body_size, build_body, centre_of_mass, lbs, skinning_matrices
+from usdmotion.render.traces import trace_meshes
+from usdmotion.skin import body_size, build_body, lbs, skinning_matrices
 from usdmotion.skin_stage import stage_body_and_shapes
-from usdmotion.render.scene import (COLORS, StickFigure, add_lights, grid_mesh, material, to_render_space,
-                                    tube_mesh)
+from usdmotion.render.scene import COLORS, StickFigure, add_lights, grid_mesh, material, to_render_space
 
 #: Frames skinned at once (one BLAS product), one chunk ahead of the rendering.
 CHUNK = 32
@@ -45,6 +45,18 @@ def choose_body(motion: Motion, which: str, resolution: int, keep: float = 1.0):
     if which == "stage":
         raise UsdMotionError("--body stage: the input has no skinned mesh that fits its skeleton")
     return fewer_triangles(build_body(motion, resolution=resolution), keep), None
+
+
+def stick_figure(motion: Motion, ghost: bool = False) -> StickFigure:
+    """``motion``'s :class:`~usdmotion.render.scene.StickFigure` (render space: metres): a stick
+    per bone of the body, none from a floor root or origin joint to the pelvis, none to or from
+    a helper joint; joints red (a ``ghost``'s blue)."""
+    rest_len = np.linalg.norm(motion.offsets[1:], axis=1)
+    body = body_groups(motion) != NO_BODY
+    bones = np.flatnonzero((rest_len > 1e-6 * body_size(motion)) & body[motion.parents[1:]] & body[1:]) + 1
+    joint_color = COLORS["ghost_stick"] if ghost else COLORS["joint"]
+    return StickFigure(motion.parents, bones, 0.012 * body_size(motion) * motion.meters_per_unit,
+                       np.float32(COLORS["bone"]), np.float32(joint_color), np.flatnonzero(body))
 
 
 @dataclass(frozen=True)
@@ -84,14 +96,7 @@ class Actor:
                                          self.body.faces, material(color))
             self.nodes.append(self.body_mesh.mesh)
         if style in ("stick", "both"):
-            rest_len = np.linalg.norm(motion.offsets[1:], axis=1)
-            # no stick from a floor root or origin joint to the pelvis, none to or from a helper joint
-            groups = body_groups(motion)
-            body = groups != NO_BODY
-            bones = np.flatnonzero((rest_len > 1e-6 * body_size(motion)) & body[motion.parents[1:]] & body[1:]) + 1
-            joint_color = COLORS["ghost_stick"] if ghost else COLORS["joint"]
-            self.stick = StickFigure(motion.parents, bones, 0.012 * body_size(motion) * self.scale,
-                                     np.float32(COLORS["bone"]), np.float32(joint_color), np.flatnonzero(body))
+            self.stick = stick_figure(motion, ghost)
             self.nodes.append(self.stick.dynamic.mesh)
 
     def _space(self, points: np.ndarray) -> np.ndarray:
@@ -238,25 +243,11 @@ class Views:
                                    pixel_angle=2 * np.tan(camera.yfov / 2) / plan.panel[1])
                 self.view_grids.append(meshes[-1])
                 static += meshes
-        for k, name in enumerate(options.traces):
-            path = self._trace_path(motion, name, joints)
-            color = COLORS["traces"][k % len(COLORS["traces"])]
-            static.append(tube_mesh(path, max(0.0015 * distance, 0.003), color))
+        static += trace_meshes(motion, options.traces, plan.frames, joints, distance, main.body)
         for scene in self.scenes:
             add_lights(scene, forward)
             for mesh in static:
                 scene.add(mesh)
-
-    def _trace_path(self, motion: Motion, name: str, joints: np.ndarray) -> np.ndarray:
-        if name.lower() in ("com", "centre_of_mass", "center_of_mass"):
-            actor = self.actors[0]
-            body = actor.body if actor.body is not None else build_body(motion, resolution=48)
-            return to_render_space(centre_of_mass(motion, body, self.plan.frames), motion.meters_per_unit,
-                                   motion.up_axis)
-        try:
-            return joints[:, motion.joint_index(name)]
-        except KeyError as exc:
-            raise UsdMotionError(f"--trace: {exc.args[0]}") from None
 
     def run(self, emit, progress, timings: dict) -> None:
         """Render every frame; ``emit(images, index)`` receives each frame's rendered views, which

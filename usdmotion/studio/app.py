@@ -7,6 +7,7 @@ thread pool (sync endpoints); a take that fails answers 422 with its one-line er
 
 from __future__ import annotations
 
+import stat
 import threading
 import time
 from collections.abc import Sequence
@@ -14,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 from starlette.applications import Starlette
+from starlette.background import BackgroundTask
 from starlette.requests import Request
 from starlette.responses import FileResponse, JSONResponse, Response
 from starlette.routing import Mount, Route
@@ -21,7 +23,7 @@ from starlette.staticfiles import StaticFiles
 
 from usdmotion.studio import compare, takes
 from usdmotion.studio.errors import StudioError
-from usdmotion.studio.library import Entry, Library, error_line, read_options
+from usdmotion.studio.library import Entry, Library, read_options, take_error_line
 
 WEB = Path(__file__).with_name("web")
 NODE_MODULES = WEB / "node_modules"
@@ -51,16 +53,13 @@ class StudioApi:
                 for name in ("takes", "meta", "skeleton", "positions", "com", "series", "glb", "compare")]
 
     def take(self, request: Request, param: str = "take") -> Entry:
-        entry = self.library.resolve(request.query_params.get(param, ""))
-        if entry is None:
-            raise StudioError(404, "not found")
-        return entry
+        return self.library.get(request.query_params.get(param, ""))
 
     def compute(self, entry: Entry, what: str, fn):
         try:
             return self.cache.get(entry, what, fn)
         except Exception as exc:  # noqa: BLE001 - one line to the page, the server keeps running
-            raise StudioError(422, error_line(entry, exc)) from None
+            raise StudioError(422, take_error_line(entry, exc)) from None
 
     def prefetch(self, take_id: str | None) -> None:
         """Start computing a linked take's positions (reading the file first) on a thread, when its
@@ -90,7 +89,8 @@ class StudioApi:
         if len(ids) > MAX_IDS:
             raise StudioError(413, f"at most {MAX_IDS} ids per request")
         entries = {take_id: self.library.resolve(take_id) for take_id in ids}
-        return JSONResponse({"meta": {take_id: self.library.metadata(e) if e else {"error": "not found"}
+        return JSONResponse({"meta": {take_id: self.library.metadata(e) if e
+                                      else {"error": self.library.missing_line(take_id)}
                                       for take_id, e in entries.items()}})
 
     def skeleton(self, request: Request) -> Response:
@@ -130,8 +130,8 @@ class StudioApi:
         try:
             frame_map = (compare.dtw_frame_map(ma, mb) if mode == "dtw" else compare.offset_frame_map(ma, mb, offset))
             align = compare.spatial_alignment(ma, frame, mb, int(round(frame_map[frame])))
-        except Exception as exc:  # noqa: BLE001
-            raise StudioError(422, str(exc).splitlines()[0] if str(exc) else type(exc).__name__) from None
+        except Exception as exc:  # noqa: BLE001 - the CLI's line (usdmotion blend aligns the same way)
+            raise StudioError(422, take_error_line(a, exc).replace(str(b.path), b.name)) from None
         return JSONResponse({"map": np.round(frame_map, 3).tolist(), "frame": frame, "align": align.tolist()})
 
 
@@ -163,9 +163,13 @@ def create_app(roots: list[Path], options: dict | None = None, out: Path | None 
                     cache, options, out)
     api.jobs = jobs.Jobs(out)
 
-    def index(request: Request) -> Response:
-        api.prefetch(request.query_params.get("take"))
-        return FileResponse(WEB / "index.html", headers={"Cache-Control": "no-cache"})
+    async def index(request: Request) -> Response:
+        # sent from the event loop at once, and only then the linked take's read started: a thread
+        # reading a take holds the GIL most of the time, and each hop of a file response to a worker
+        # thread waited for it (the page came 30-260 ms after its request, at load 5)
+        return Response((WEB / "index.html").read_bytes(), media_type="text/html",
+                        headers={"Cache-Control": "no-cache"},
+                        background=BackgroundTask(api.prefetch, request.query_params.get("take")))
 
     routes = [Route("/", index), *api.routes(), *jobs.routes(api.jobs), *edit_panel.routes(api),
               *retarget_panel.routes(api), *video_panel.routes(api), *segment_panel.routes(api),
@@ -222,10 +226,30 @@ def cached_glb(entry: Entry, options: dict, out: Path | None, make) -> bytes:
 
 class _Static(StaticFiles):
     """Scripts and styles the browser keeps but checks again on every load (ETag → 304 Not
-    Modified): a reload reuses them (and the compiled code) yet never runs a stale app."""
+    Modified): a reload reuses them (and the compiled code) yet never runs a stale app.
 
-    def file_response(self, *args, **kwargs) -> Response:
-        response = super().file_response(*args, **kwargs)
+    A GET is answered from the event loop in one piece (a stat and a read of a local file of at most
+    a few MB): Starlette's file responses hop to a worker thread for the look-up and for every 64 KiB,
+    and while the server reads a take (a thread holding the GIL) each hop waited its turn, which made
+    three.js (2 MB) arrive late for a linked take's first frame."""
+
+    async def get_response(self, path: str, scope) -> Response:
+        if scope["method"] == "GET":
+            try:
+                full_path, stat_result = self.lookup_path(path)
+            except (OSError, ValueError):
+                full_path, stat_result = "", None  # Starlette's own answer below (401, 404...)
+            if stat_result is not None and stat.S_ISREG(stat_result.st_mode):
+                return self.file_response(full_path, stat_result, scope)
+        return await super().get_response(path, scope)
+
+    def file_response(self, full_path, stat_result, scope, status_code: int = 200) -> Response:
+        response = super().file_response(full_path, stat_result, scope, status_code)
+        if scope["method"] == "GET" and isinstance(response, FileResponse):
+            try:
+                response = Response(Path(full_path).read_bytes(), status_code, headers=dict(response.headers))
+            except OSError:
+                pass  # gone meanwhile: the file response reports it
         response.headers["cache-control"] = "no-cache"
         return response
 

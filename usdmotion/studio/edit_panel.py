@@ -19,9 +19,10 @@ from starlette.requests import Request
 from starlette.responses import JSONResponse, Response
 from starlette.routing import Route
 
+from usdmotion.errors import error_line
 from usdmotion.studio import takes
 from usdmotion.studio.errors import StudioError
-from usdmotion.studio.jobs import Kept, error_text, json_body, saved, submit_save
+from usdmotion.studio.jobs import Kept, json_body, saved, submit_save
 
 #: Edited motions kept for the page (positions and plots are fetched after the preview).
 KEEP_PREVIEWS = 6
@@ -96,9 +97,7 @@ class EditPanel:
 
     def operations(self, body: dict):
         """The take, its motion and the pipeline of ``body`` (blend ``with``: library id → file)."""
-        entry = self.api.library.resolve(body.get("take", ""))
-        if entry is None:
-            raise StudioError(404, "not found")
+        entry = self.api.library.get(body.get("take", ""))
         ops = body.get("ops")
         if not isinstance(ops, list) or len(ops) > 50:
             raise StudioError(400, "ops must be a list of at most 50 edit operations")
@@ -127,7 +126,7 @@ class EditPanel:
         except StudioError:
             raise
         except Exception as exc:  # noqa: BLE001 - one line to the page, the server keeps running
-            line = error_text(exc)
+            line = error_line(exc)
             for other in [entry, *others.values()]:
                 line = line.replace(str(other.path), other.name)
             raise StudioError(422, line) from None

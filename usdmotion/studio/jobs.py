@@ -25,6 +25,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 
+from usdmotion.errors import error_line
 from usdmotion.progress import Progress
 from usdmotion.studio.errors import StudioError
 
@@ -38,17 +39,6 @@ Work = Callable[[Progress, list[Path]], dict]
 
 class JobCancelled(Exception):
     """Raised by a cancelled job's ``progress`` callback: unwinds the work (atomic writes clean up)."""
-
-
-def error_text(exc: BaseException) -> str:
-    """The line the CLI prints for ``exc`` (``usdmotion: error: ...``, see :func:`usdmotion.cli.main`)."""
-    from usdmotion.errors import UsdMotionError
-
-    text = exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc)
-    line = str(text).splitlines()[0] if str(text) else type(exc).__name__
-    if not isinstance(exc, (UsdMotionError, ValueError, KeyError, OSError, MemoryError)):
-        line = f"internal error ({type(exc).__name__}: {line if str(exc) else ''})"
-    return f"usdmotion: error: {line}"
 
 
 @dataclass
@@ -192,7 +182,7 @@ class Jobs:
                 job.state = "cancelled"
             except BaseException as exc:  # noqa: BLE001 - every failure is the job's one line
                 self._remove_outputs(job)
-                line = error_text(exc)
+                line = error_line(exc)
                 for full, name in sorted(names.items(), key=lambda kv: -len(kv[0])):
                     line = line.replace(full, name)
                 job.error, job.state = line, "failed"

@@ -70,15 +70,35 @@ class Library:
 
     def resolve(self, take_id: str) -> Entry | None:
         """The entry of ``take_id`` if it names a motion file inside its root, else ``None``."""
-        if not isinstance(take_id, str) or len(take_id) > 4096 or "\\" in take_id or "\0" in take_id:
-            return None
-        head, _, rel = take_id.partition("/")
-        if not head.isdigit() or int(head) >= len(self.roots) or not rel:
-            return None
-        parts = PurePosixPath(rel).parts
-        if rel.startswith("/") or any(p in ("..", ".", "") for p in rel.split("/")) or not parts:
-            return None
-        return self._entry(int(head), rel)
+        named = _split_id(take_id, len(self.roots))
+        return None if named is None else self._entry(*named)
+
+    def get(self, take_id: str) -> Entry:
+        """The entry of ``take_id``; :class:`StudioError` 404 with :meth:`missing_line` if none."""
+        from usdmotion.studio.errors import StudioError
+
+        entry = self.resolve(take_id)
+        if entry is None:
+            raise StudioError(404, self.missing_line(take_id))
+        return entry
+
+    def missing_line(self, take_id: str) -> str:
+        """The one line for a take id that names no take: for a motion file's name under a folder root
+        that is not there, the line its reader gives (``usdmotion info`` on that path, run in the root,
+        prints the same line); for anything else (out of its root, not a motion file, a malformed id),
+        ``usdmotion: error: ID: not found``, which tells nothing about what lies outside the roots."""
+        named = _split_id(take_id, len(self.roots))
+        if named is not None and self.roots[named[0]].is_dir() and named[1].lower().endswith(MOTION_EXTENSIONS):
+            root = self.roots[named[0]]
+            path = root / named[1]
+            if not os.path.lexists(path) and Path(os.path.realpath(path)).is_relative_to(root):
+                entry = Entry(take_id, named[1], path, 0, 0)
+                try:
+                    read_take(entry, self.options)
+                except Exception as exc:  # noqa: BLE001 - the reader's line for a missing file
+                    return take_error_line(entry, exc)
+        name = named[1] if named is not None else str(take_id)[:200]
+        return f"usdmotion: error: {name}: not found"
 
     def _entry(self, index: int, rel: str) -> Entry | None:
         root = self.roots[index]
@@ -132,7 +152,7 @@ def describe_take(entry: Entry, read) -> dict:
             "height_m": skeleton_height(motion) * motion.meters_per_unit,
         }
     except Exception as exc:  # noqa: BLE001 - every failure becomes the take's one-line error
-        return {"error": error_line(entry, exc)}
+        return {"error": take_error_line(entry, exc)}
 
 
 def read_take(entry: Entry, options: dict):
@@ -147,12 +167,23 @@ def read_take(entry: Entry, options: dict):
     return read_motion(entry.path, **options)
 
 
-def error_line(entry: Entry, exc: BaseException) -> str:
-    """The one-line message of ``exc`` with the take's library name instead of its full path."""
-    text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-    text = text.replace(str(entry.path), entry.name)
-    if isinstance(exc, MemoryError):
-        text = f"{entry.name}: not enough memory to read it"
-    elif entry.name not in text:
-        text = f"{entry.name}: {text}"
-    return text
+def take_error_line(entry: Entry, exc: BaseException) -> str:
+    """The line the CLI prints for ``exc`` (:func:`usdmotion.errors.error_line`:
+    ``usdmotion: error: FILE[:LINE]: message``), the take named by its library name (its path under
+    its root, as ``usdmotion info`` run in the root names it) instead of its full path."""
+    from usdmotion.errors import error_line
+
+    return error_line(exc).replace(str(entry.path), entry.name)
+
+
+def _split_id(take_id, n_roots: int) -> tuple[int, str] | None:
+    """``(root index, relative POSIX path)`` of a well-formed take id, else ``None`` (no ``..``,
+    ``.``, empty or absolute parts, no backslash or NUL, a root that exists)."""
+    if not isinstance(take_id, str) or len(take_id) > 4096 or "\\" in take_id or "\0" in take_id:
+        return None
+    head, _, rel = take_id.partition("/")
+    if not head.isdigit() or int(head) >= n_roots or not rel:
+        return None
+    if rel.startswith("/") or any(p in ("..", ".", "") for p in rel.split("/")) or not PurePosixPath(rel).parts:
+        return None
+    return int(head), rel

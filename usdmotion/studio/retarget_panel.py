@@ -17,9 +17,10 @@ from starlette.requests import Request
 from starlette.responses import JSONResponse, Response
 from starlette.routing import Route
 
+from usdmotion.errors import error_line
 from usdmotion.studio import takes
 from usdmotion.studio.errors import StudioError
-from usdmotion.studio.jobs import Kept, error_text, json_body, saved, submit_save
+from usdmotion.studio.jobs import Kept, json_body, saved, submit_save
 
 #: Retarget results kept for playing and saving.
 KEEP_RESULTS = 4
@@ -42,10 +43,8 @@ class RetargetPanel:
 
     def request(self, body: dict) -> tuple:
         """Source and target entries and the retarget keywords of a request body."""
-        source = self.api.library.resolve(body.get("take", ""))
-        target = self.api.library.resolve(body.get("target", "")) if body.get("target") else None
-        if source is None or (body.get("target") and target is None):
-            raise StudioError(404, "not found")
+        source = self.api.library.get(body.get("take", ""))
+        target = self.api.library.get(body["target"]) if body.get("target") else None
         remove = body.get("remove") or []
         if isinstance(remove, str):
             remove = [n.strip() for n in remove.split(",") if n.strip()]
@@ -86,7 +85,7 @@ class RetargetPanel:
         return src, tgt
 
     def one_line(self, exc: BaseException, *entries) -> StudioError:
-        line = error_text(exc)
+        line = error_line(exc)
         for entry in entries:
             if entry is not None:
                 line = line.replace(str(entry.path), entry.name)

@@ -32,8 +32,9 @@ from starlette.requests import Request
 from starlette.responses import JSONResponse, Response
 from starlette.routing import Route
 
+from usdmotion.errors import error_line
 from usdmotion.studio.errors import StudioError
-from usdmotion.studio.jobs import error_text, json_body, library_name, output_path
+from usdmotion.studio.jobs import json_body, library_name, output_path
 
 #: A take longer than this is segmented as a job (progress, cancel) rather than in the request.
 LONG_TAKE_FRAMES = 30_000
@@ -145,10 +146,7 @@ class SegmentPanel:
                 Route("/api/segment/export", self.export, methods=["POST"])]
 
     def entry(self, take_id):
-        entry = self.api.library.resolve(take_id if isinstance(take_id, str) else "")
-        if entry is None:
-            raise StudioError(404, "not found")
-        return entry
+        return self.api.library.get(take_id)
 
     def compute(self, entry, what: str, fn):
         """``fn(motion)`` cached with the take; a library error is one line naming the take (422)."""
@@ -214,7 +212,7 @@ class SegmentPanel:
             doc = validate(segments_document(seg, entry.name, labels=labels), "segments", path.name)
             write_segments_json(seg, path, entry.name, labels=labels)
         except Exception as exc:  # noqa: BLE001 - one line to the page
-            raise StudioError(422, error_text(exc).replace(str(path.parent), jobs.shown(path.parent))) from None
+            raise StudioError(422, error_line(exc).replace(str(path.parent), jobs.shown(path.parent))) from None
         return {"output": jobs.shown(path), "doc": doc}
 
     async def export(self, request: Request) -> Response:
@@ -288,7 +286,7 @@ class SegmentPanel:
         try:
             doc = load_saved(path, motion, shown)
         except Exception as exc:  # noqa: BLE001 - one line to the page
-            raise StudioError(422, error_text(exc).replace(str(path), shown)) from None
+            raise StudioError(422, error_line(exc).replace(str(path), shown)) from None
         return JSONResponse({"doc": doc, "output": shown})
 
     def saved_path(self, entry) -> Path | None:

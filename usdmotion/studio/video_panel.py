@@ -84,10 +84,8 @@ class VideoPanel:
         from usdmotion.render import render_motion
 
         body = await json_body(request)
-        entry = self.api.library.resolve(body.get("take", ""))
-        other_entry = self.api.library.resolve(body["compare"]) if body.get("compare") else None
-        if entry is None or (body.get("compare") and other_entry is None):
-            raise StudioError(404, "not found")
+        entry = self.api.library.get(body.get("take", ""))
+        other_entry = self.api.library.get(body["compare"]) if body.get("compare") else None
         motion = self.api.compute(entry, "motion", None)
         other = None if other_entry is None else self.api.compute(other_entry, "motion", None)
         options = render_options({**body, "label": entry.name, "label2": other_entry.name if other_entry else ""},

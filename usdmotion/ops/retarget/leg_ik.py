@@ -20,7 +20,8 @@ frames at once in float64 NumPy (no per-frame loop):
    from the lowered hip is raised (only the ankle down: straight up; with the toe down:
    by turning the foot about the toe's point — the heel lifts).
 3. **Two-bone IK** (:func:`place_legs`): the knee stays in the plane of the solved leg (its
-   bend direction, plus a little of the foot's heading where the leg is straight), the hip
+   bend direction, plus a little of the knee's hinge, which decides where the solved leg
+   is nearly straight: :func:`knee_hinge_bend`), the hip
    and knee turn by the shortest rotations that put knee and ankle where the triangle
    says; the foot keeps its solved world rotation turned by the shortest rotation that
    aims it at the toe's target. Every other joint keeps the solve's rotation.
@@ -42,8 +43,8 @@ DROP_WINDOW_S = 0.15
 #: A leg is never stretched beyond this share of its length (a fully straight knee has no
 #: bend direction to keep).
 REACH = 0.9995
-#: Weight of the foot's heading in the knee's bend direction (per unit of thigh length):
-#: it decides the bend only where the solved leg is (nearly) straight.
+#: Weight of the foot's heading (per unit of bone length) in the direction a toe End Site
+#: below the floor is lifted in (see :func:`_toes_above_floor`).
 HEADING_SHARE = 0.02
 #: Seconds over which a contact's offset fades out into the swing (see :func:`_follow`).
 FADE_S = 0.2
@@ -53,6 +54,9 @@ FADE_S = 0.2
 SHIFT_WEIGHT = 4.0
 SHIFT_REACH = 0.05
 SHIFT_STEPS = 20
+#: Weight of the knee's hinge (per unit of thigh length) in its bend direction: it decides
+#: only where the solved leg is nearly straight (see :func:`knee_hinge_bend`).
+HINGE_SHARE = 0.1
 
 
 @dataclass(frozen=True)
@@ -284,6 +288,19 @@ def within_reach(planted: np.ndarray, contact: np.ndarray, legs: list[Leg], hips
     return planted
 
 
+def hip_spikes(height: np.ndarray) -> np.ndarray:
+    """``(F,)`` how far (≥ 0) the hips' ``height (F,)`` rises above the median of it and its two
+    neighbours: a one-frame upward spike (a mocap glitch). Where the root already comes down
+    (:func:`root_drop`: a leg at full reach) it comes down by this much more, so the spike
+    leaves the root instead of straightening the planted leg's knee for a frame (86_01 →
+    Rokoko frame 430: the hips 7 mm up for one frame turned the right knee 11° and back)."""
+    if height.shape[0] < 3:
+        return np.zeros_like(height)
+    padded = np.pad(height, 1, mode="edge")
+    median = np.median(np.lib.stride_tricks.sliding_window_view(padded, 3), axis=1)
+    return np.maximum(height - median, 0.0)
+
+
 def _swing(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``(..., 4)`` the shortest rotations taking directions ``a`` to ``b`` ``(..., 3)``."""
     a, b = _unit(a), _unit(b)
@@ -312,6 +329,7 @@ def place_legs(q: np.ndarray, t: np.ndarray, parents: np.ndarray, anchor: int, l
     planted = within_reach(planted, contact, legs, hips, reach, up, body_weight)
     points = planted[:, [leg.ankle_c for leg in legs]]
     drop = root_drop(np.where(flat[..., None], hips, points), reach, points, up, fps)
+    drop = drop + np.where(drop > 0, hip_spikes(hips[..., up].mean(axis=1)), 0.0)
     if drop.max() > 0:
         shift = np.zeros((q.shape[0], 3))
         shift[:, up] = -drop
@@ -354,6 +372,23 @@ def _toes_above_floor(q, t, parents, legs: list[Leg], floor: float, up: int) -> 
     return q
 
 
+def knee_hinge_bend(world_q: np.ndarray, world_p: np.ndarray, leg: Leg, u: np.ndarray) -> np.ndarray:
+    """``(F, 3)`` unit direction, across ``u (F, 3)`` (hip → ankle target), towards which the
+    knee bends about its hinge: the take's mean hinge axis of the solved leg in the thigh's
+    frame (``(knee − hip) × (ankle − knee)`` weighted by how far the leg bends), carried by
+    each frame's solved thigh rotation ``world_q[:, hip]``.
+
+    Where the solved leg is nearly straight, its knee's offset from the hip → ankle line is
+    float noise whose direction swings between frames; a knee the IK must bend further (the
+    root came down) then turned with it (walk → legs 0.8× frame 12: hip 7.7°, knee 13.3°
+    in one frame where the source's largest steps are 3.8° and 6.3°)."""
+    hip, knee, ankle = world_p[:, leg.hip], world_p[:, leg.knee], world_p[:, leg.ankle]
+    thigh = world_q[:, leg.hip]
+    normal = np.cross(knee - hip, ankle - knee)  # (F, 3), length ∝ sin(bend)
+    axis = _unit(quat_rotate(quat_conjugate(thigh), normal).sum(axis=0))
+    return _unit(np.cross(u, quat_rotate(thigh, np.broadcast_to(axis, normal.shape))))
+
+
 def _two_bone(q, world_q, world_p, parents, leg: Leg, ankle_target, toe_target, up, toe_level):
     """Local rotations of hip, knee and ankle of one leg placed on its targets (see :func:`place_legs`)."""
     hip, knee, ankle = world_p[:, leg.hip], world_p[:, leg.knee], world_p[:, leg.ankle]
@@ -362,13 +397,11 @@ def _two_bone(q, world_q, world_p, parents, leg: Leg, ankle_target, toe_target, 
     to_target = ankle_target - hip
     d = np.clip(np.linalg.norm(to_target, axis=-1, keepdims=True), np.abs(a - b) + 1e-9 * (a + b), REACH * (a + b))
     u = _unit(to_target)
-    # the knee's bend direction: the solved knee off the hip → ankle line, plus a little of the
-    # foot's heading (decides only where the solved leg is straight)
+    # the knee's bend direction: the solved knee off the hip → ankle line, plus the knee's hinge
+    # (decides where the solved leg is nearly straight, see knee_hinge_bend)
     along = _unit(ankle - hip)
     bend = (knee - hip) - np.sum((knee - hip) * along, -1, keepdims=True) * along
-    heading = world_p[:, leg.toe] - ankle if leg.toe >= 0 else np.zeros_like(ankle)
-    heading[:, up] = 0.0
-    bend = bend + HEADING_SHARE * a * _unit(heading)
+    bend = bend + HINGE_SHARE * a * knee_hinge_bend(world_q, world_p, leg, u)
     v = _unit(bend - np.sum(bend * u, -1, keepdims=True) * u)
     cos = np.clip((a ** 2 + d ** 2 - b ** 2) / (2 * a * d), -1.0, 1.0)
     new_knee = hip + a * (cos * u + np.sqrt(1.0 - cos ** 2) * v)

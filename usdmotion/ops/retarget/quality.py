@@ -4,7 +4,9 @@
   source positions — the targets of the solve, root scaling included — in cm;
 * ``rotation_steps``: per target joint the largest change of its local rotation between
   consecutive frames (degrees) against a limit: twice the largest step of the source
-  joint it follows, or for joints no source joint drives 30° per frame at 120 fps
+  joint it follows (relative to the source joint its nearest mapped ancestor follows:
+  the composition of source joints the target lacks, see :func:`followed_rotations`),
+  or for joints no source joint drives 30° per frame at 120 fps
   (scaled by the frame rate); never below :data:`STEP_FLOOR_DEG` at 120 fps (a joint the
   source barely moves may still be moved a little). ``flips`` lists the joints above it;
 * with contacts, ``feet`` (:func:`usdmotion.ops.contacts.foot_metrics` on the target's
@@ -19,6 +21,7 @@ import numpy as np
 
 from usdmotion.kinematics import fk_arrays, local_translations
 from usdmotion.motion import Motion
+from usdmotion.rotations import quat_conjugate, quat_mul
 
 #: Unmapped joints: at most this many degrees per frame at 120 fps.
 UNMAPPED_STEP_DEG = 30.0
@@ -36,13 +39,48 @@ def rotation_steps(rotations: np.ndarray) -> np.ndarray:
     return np.degrees(2 * np.arccos(dot)).max(axis=0)
 
 
+def followed_rotations(source: Motion, setup) -> tuple[np.ndarray, np.ndarray]:
+    """``(joints (K,), rotations (F, K, 4))``: the source rotation each mapped target joint
+    follows — its source joint ``s``'s rotation relative to the source joint that the target
+    joint's nearest mapped ancestor follows (``W_a⁻¹ · W_s``, world rotations of the source).
+
+    A target joint's local rotation is relative to its target parent; where the source has
+    joints between the two mapped joints that the target lacks (CMU's ``LowerBack`` between
+    ``Hips`` and ``Spine`` on a Mixamo rig), the target joint carries their rotations too,
+    and ``W_a⁻¹ · W_s`` is their composition. Where the chains match (the nearest mapped
+    ancestor follows ``s``'s source parent) it is ``s``'s local rotation exactly; where the
+    ancestor's source joint is not above ``s`` (or there is none), ``s``'s local rotation."""
+    from usdmotion.kinematics import world_rotations_positions
+
+    parents, source_of = setup.rig.parents, setup.source_of
+    follows = (source_of >= 0) & (setup.weights > 0)
+    joints = np.flatnonzero(follows)
+    relative_to = np.full(len(joints), -1)
+    for k, j in enumerate(joints):  # per joint of the rig, once per report (not per frame)
+        a = parents[j]
+        while a >= 0 and not follows[a]:
+            a = parents[a]
+        s, above = source_of[j], source.parents[source_of[j]]
+        while above >= 0 and a >= 0 and above != source_of[a]:
+            above = source.parents[above]
+        if a >= 0 and above >= 0 and above != source.parents[s]:
+            relative_to[k] = above
+    rotations = source.rotations[:, source_of[joints]].copy()
+    chained = relative_to >= 0
+    if chained.any():
+        world = world_rotations_positions(source)[0]
+        rotations[:, chained] = quat_mul(quat_conjugate(world[:, relative_to[chained]]),
+                                         world[:, source_of[joints[chained]]])
+    return joints, rotations
+
+
 def step_limits(source: Motion, setup) -> np.ndarray:
-    """``(J,)`` allowed step per target joint (degrees per frame, see the module docstring)."""
+    """``(J,)`` allowed step per target joint (degrees per frame, see the module docstring):
+    twice the largest step of the rotation it follows (:func:`followed_rotations`)."""
     per_frame = 120.0 / source.fps
-    src = rotation_steps(source.rotations)
-    follows = (setup.source_of >= 0) & (setup.weights > 0)
+    joints, followed = followed_rotations(source, setup)
     limit = np.full(setup.rig.n_joints, UNMAPPED_STEP_DEG * per_frame)
-    limit[follows] = np.maximum(2.0 * src[setup.source_of[follows]], STEP_FLOOR_DEG * per_frame)
+    limit[joints] = np.maximum(2.0 * rotation_steps(followed), STEP_FLOOR_DEG * per_frame)
     return limit
 
 

@@ -33,16 +33,17 @@ from __future__ import annotations
 
 import os
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from usdmotion.kinematics import fk_arrays
 from usdmotion.ops.retarget.hierarchy import ancestor_matrix
-from usdmotion.ops.retarget.problem import (ADAM_ITERATIONS, ADAM_LR, LM_ATOL, LM_DIAG_FLOOR, LM_DOWN, LM_ITERATIONS,
-                                            LM_LAMBDA0, LM_LAMBDA_MAX, LM_LAMBDA_MIN, LM_NULL_DAMPING, LM_RTOL,
-                                            LM_RTOL_TOTAL, LM_UP, Problem, masks)
+from usdmotion.ops.retarget.problem import (ADAM_ITERATIONS, ADAM_LR, LM_ATOL, LM_DAMPING_UPDATE,
+                                            LM_DAMPING_UPDATES, LM_DIAG_FLOOR, LM_DOWN, LM_ITERATIONS, LM_LAMBDA0,
+                                            LM_LAMBDA_MAX, LM_LAMBDA_MIN, LM_NULL_DAMPING, LM_RTOL, LM_RTOL_TOTAL,
+                                            LM_UP, Problem, masks)
 from usdmotion.ops.retarget.adam import make_adam
 from usdmotion.ops.retarget.rotation_terms import make_rotation_terms
 from usdmotion.ops.retarget.tree_step import make_tree_step
@@ -225,7 +226,46 @@ def make_lm_step(problem: Problem, linear: str = "tree"):
     return lm_step
 
 
-def _make_lm(problem: Problem, linear: str = "tree"):
+def make_model_gain(problem: Problem):
+    """``(world_p (B,J,3), r (B,P,3), w (B,P), step (B,P'), rot_r=None (B,R,3), rot_w=None (B,R))
+    -> (B,)``: the loss reduction the Gauss–Newton model predicts for ``step``,
+    ``m(0) − m(step)`` with ``m(x) = Σ_p w_p ‖r_p + J_p x‖² + Σ_k w_k ‖ρ_k + Σ_{j ⪯ k} x_j‖²``:
+    a point moves by ``Σ_j x_j × (p_m − p_j)`` over the rotation joints above it plus the
+    translation increments above it, a world rotation residual by the increments of the
+    rotation joints at or above it (the Jacobians :func:`make_tree_step` uses). Costs two
+    small matrix products per iteration; Nielsen's damping update needs it."""
+    import jax.numpy as jnp
+
+    anc = ancestor_matrix(problem.parents)
+    points = problem.points
+    n_rot, n_trans = len(problem.rot_joints), len(problem.trans_joints)
+    rot_mask, trans_mask = (jnp.asarray(m) for m in masks(problem))  # (P, R), (P, T)
+    at_or_above = anc | np.eye(len(problem.parents), dtype=bool)
+    rot_rot = jnp.asarray(at_or_above[problem.rot_joints][:, problem.rot_joints].T.astype(np.float32))  # (R, R)
+    rot_j, point_j = jnp.asarray(problem.rot_joints), jnp.asarray(points)
+
+    def gain(world_p, r, w, step, rot_r=None, rot_w=None):
+        x = step[:, : 3 * n_rot].reshape(step.shape[0], n_rot, 3)
+        pm = world_p[:, point_j]
+        moved = jnp.zeros_like(r)
+        if n_rot:
+            spin = jnp.einsum("pr,brk->bpk", rot_mask.astype(r.dtype), x)
+            lever = jnp.einsum("pr,brk->bpk", rot_mask.astype(r.dtype), jnp.cross(x, world_p[:, rot_j]))
+            moved = jnp.cross(spin, pm) - lever
+        if n_trans:
+            delta = step[:, 3 * n_rot:].reshape(step.shape[0], n_trans, 3)
+            moved = moved + jnp.einsum("pt,btk->bpk", trans_mask.astype(r.dtype), delta)
+        # m(0) − m(x) = −Σ w (2 r·Jx + ‖Jx‖²)
+        out = -jnp.einsum("bpk,bpk,bp->b", moved, 2.0 * r + moved, w)
+        if rot_w is not None and n_rot:
+            turned = jnp.einsum("kr,brc->bkc", rot_rot.astype(r.dtype), x)
+            out = out - jnp.einsum("bkc,bkc,bk->b", turned, 2.0 * rot_r + turned, rot_w)
+        return out
+
+    return gain
+
+
+def _make_lm(problem: Problem, linear: str = "tree", damping: str = LM_DAMPING_UPDATE):
     """A jitted ``(q, t, targets, w, floor, smooth_mask, iterations) -> (q, t, loss (B,),
     initial loss (B,), iterations run)`` LM solver (at most ``iterations``, a runtime int32
     scalar so one compiled function serves every cap; stops early when every frame has
@@ -235,6 +275,7 @@ def _make_lm(problem: Problem, linear: str = "tree"):
 
     ``linear``: ``"tree"`` (:func:`make_tree_step`, default) or ``"dense"``
     (:func:`make_dense_step`, without the temporal term); both solve the same damped system.
+    ``damping``: the λ update rule (:data:`usdmotion.ops.retarget.problem.LM_DAMPING_UPDATES`).
     """
     import jax
     import jax.numpy as jnp
@@ -247,6 +288,8 @@ def _make_lm(problem: Problem, linear: str = "tree"):
     # λ adapts, so they must not count as convergence
     stiff = bool(len(problem.contact_joints) or len(problem.floor_joints))
     smoothness = make_rotation_terms(problem) if smoothing else None
+    nielsen = damping == "nielsen"
+    model_gain = make_model_gain(problem) if nielsen else None
     rot_j = jnp.asarray(problem.rot_joints)
 
     def solve(q, t, targets, w, floor, smooth_mask, iterations):
@@ -256,6 +299,7 @@ def _make_lm(problem: Problem, linear: str = "tree"):
             loss = loss + smoothness(world_q, smooth_mask, None, prior)[2]
         initial = loss
         lam = jnp.full(loss.shape, LM_LAMBDA0, loss.dtype)
+        nu = jnp.full(loss.shape, 2.0, loss.dtype)  # Nielsen's factor for the next rejection
         stall = jnp.zeros(loss.shape, jnp.int32)  # iterations in a row without real progress
 
         def cond(carry):
@@ -264,14 +308,15 @@ def _make_lm(problem: Problem, linear: str = "tree"):
             return (i < iterations) & ~jnp.all(frames_done) & (flat < 2)
 
         def body(carry):
-            i, q, t, world_q, world_p, r, loss, lam, stall, flat, w_all = carry
+            i, q, t, world_q, world_p, r, loss, lam, stall, flat, w_all, nu = carry
+            rot_r = rot_w = None
             if smoothing:  # neighbours held for this iteration (Jacobi over time)
                 mid = smoothness.midpoints(world_q)
                 rot_r, rot_w, s_loss = smoothness(world_q, smooth_mask, mid, prior)
                 loss = evaluate_loss(r, w_all) + s_loss
-                q2, t2 = apply(q, t, world_q, lm_step(world_p, r, lam, w_all, rot_r, rot_w))
-            else:
-                q2, t2 = apply(q, t, world_q, lm_step(world_p, r, lam, w_all))
+            step = lm_step(world_p, r, lam, w_all, rot_r, rot_w) if smoothing else lm_step(world_p, r, lam, w_all)
+            predicted = model_gain(world_p, r, w_all, step, rot_r, rot_w) if nielsen else None
+            q2, t2 = apply(q, t, world_q, step)
             world_q2, world_p2, r2, loss2, w2 = evaluate(q2, t2, targets, w, floor)
             if smoothing:
                 loss2 = loss2 + smoothness(world_q2, smooth_mask, mid, prior)[2]
@@ -285,12 +330,18 @@ def _make_lm(problem: Problem, linear: str = "tree"):
             new_loss = pick(loss2, loss)
             total_gain = (jnp.sum(loss) - jnp.sum(new_loss)) / jnp.maximum(jnp.sum(loss), 1e-30)
             flat = jnp.where(total_gain < LM_RTOL_TOTAL, flat + 1, 0)
-            lam = jnp.clip(jnp.where(ok, lam * LM_DOWN, lam * LM_UP), LM_LAMBDA_MIN, LM_LAMBDA_MAX)
+            if nielsen:  # ρ = actual / predicted reduction (see problem.LM_DAMPING_UPDATE)
+                rho = (loss - loss2) / jnp.maximum(predicted, 1e-30 * jnp.maximum(loss, 1e-30))
+                shrink = jnp.maximum(1.0 / 3.0, 1.0 - (2.0 * jnp.clip(rho, 0.0, 1.0) - 1.0) ** 3)
+                lam = jnp.clip(jnp.where(ok, lam * shrink, lam * nu), LM_LAMBDA_MIN, LM_LAMBDA_MAX)
+                nu = jnp.where(ok, 2.0, jnp.minimum(2.0 * nu, 1e6))
+            else:
+                lam = jnp.clip(jnp.where(ok, lam * LM_DOWN, lam * LM_UP), LM_LAMBDA_MIN, LM_LAMBDA_MAX)
             return (i + 1, pick(q2, q), pick(t2, t), pick(world_q2, world_q), pick(world_p2, world_p), pick(r2, r),
-                    new_loss, lam, stall, flat, pick(w2, w_all))
+                    new_loss, lam, stall, flat, pick(w2, w_all), nu)
 
         carry = jax.lax.while_loop(cond, body, (jnp.int32(0), q, t, world_q, world_p, r, loss, lam, stall,
-                                                jnp.int32(0), w_all))
+                                                jnp.int32(0), w_all, nu))
         return carry[1], carry[2], carry[6], initial, carry[0]
 
     return jax.jit(solve)
@@ -304,17 +355,20 @@ def evaluate_loss(r, w):
 
 
 _EXECUTABLES: dict = {}
+#: LM's λ update rule for :func:`solve` calls that name none (a benchmark may switch it).
+DAMPING = LM_DAMPING_UPDATE
 
 
-def _executable(problem: Problem, method: str, iterations: int, lr: float, args) -> tuple[object, float]:
+def _executable(problem: Problem, method: str, iterations: int, lr: float, args,
+                damping: str = LM_DAMPING_UPDATE) -> tuple[object, float]:
     """``(compiled function, seconds spent compiling)`` for these argument shapes (cached)."""
 
-    key = (problem.key(), method, None if method == "lm" else iterations, lr,
+    key = (problem.key(), method, None if method == "lm" else iterations, lr, damping,
            tuple((a.shape, str(a.dtype)) for a in args))
     if key in _EXECUTABLES:
         return _EXECUTABLES[key], 0.0
     start = time.perf_counter()
-    fn = _make_lm(problem) if method == "lm" else make_adam(problem, iterations, lr)
+    fn = _make_lm(problem, damping=damping) if method == "lm" else make_adam(problem, iterations, lr)
     compiled = fn.lower(*args).compile()
     if len(_EXECUTABLES) >= 32:
         _EXECUTABLES.pop(next(iter(_EXECUTABLES)))
@@ -369,7 +423,7 @@ class Solution:
 def solve(problem: Problem, q0: np.ndarray, t0: np.ndarray, targets: np.ndarray, method: str = "lm",
           iterations: int | None = None, chunk: int | None = None, lr: float = ADAM_LR,
           progress: Progress | None = None, weights: np.ndarray | None = None,
-          floor: np.ndarray | None = None) -> Solution:
+          floor: np.ndarray | None = None, damping: str | None = None) -> Solution:
     """Optimise rotations (and free translations) of all frames.
 
     Args:
@@ -387,6 +441,9 @@ def solve(problem: Problem, q0: np.ndarray, t0: np.ndarray, targets: np.ndarray,
             the problem's static weights; contact terms off). ``targets`` is then
             ``(F, M + C, 3)``.
         floor: ``(F,)`` floor height on the up axis, centred like ``t0`` (floor term).
+        damping: LM's λ update, ``"fixed"`` or ``"nielsen"`` (default: the module setting
+            :data:`DAMPING`, i.e. :data:`usdmotion.ops.retarget.problem.LM_DAMPING_UPDATE`;
+            ``benchmarks/retarget_contacts.py --damping`` sets it to compare).
 
     LM solves every chunk of consecutive frames in one compiled call; the temporal term
     (``problem.smooth``) links neighbouring frames inside a chunk (not across chunks).
@@ -398,6 +455,12 @@ def solve(problem: Problem, q0: np.ndarray, t0: np.ndarray, targets: np.ndarray,
 
     if method not in ("lm", "adam"):
         raise ValueError(f"unknown method {method!r}")
+    damping = damping or DAMPING
+    if damping not in LM_DAMPING_UPDATES:
+        raise ValueError(f"unknown damping update {damping!r}")
+    full_q0, full_t0 = q0, t0
+    problem, keep = needed_joints(problem)  # joints that move no residual point: not computed at all
+    q0, t0 = q0[:, keep], t0[:, keep]
     extra = len(problem.contact_joints) or len(problem.floor_joints) or problem.smoothing or problem.anchored
     if method == "adam" and extra:
         raise ValueError("the contact, floor and temporal terms need method 'lm'")
@@ -427,7 +490,7 @@ def solve(problem: Problem, q0: np.ndarray, t0: np.ndarray, targets: np.ndarray,
             inner[1: stop - start - 1] = 1.0
             args += [jnp.asarray(weights[pad], jnp.float32), jnp.asarray(floor[pad], jnp.float32),
                      jnp.asarray(inner), jnp.int32(iterations)]
-        fn, seconds = _executable(problem, method, iterations, float(lr), args)
+        fn, seconds = _executable(problem, method, iterations, float(lr), args, damping)
         compile_s += seconds
         began = time.perf_counter()
         result = jax.block_until_ready(fn(*args))
@@ -437,9 +500,32 @@ def solve(problem: Problem, q0: np.ndarray, t0: np.ndarray, targets: np.ndarray,
         calls += 1
         if progress is not None:
             progress(stop, n_frames, "retargeting")
-    q, t, loss, initial = (np.concatenate(parts) for parts in zip(*outs))
+    q_kept, t_kept, loss, initial = (np.concatenate(parts) for parts in zip(*outs))
+    q, t = np.array(full_q0, np.float64), np.array(full_t0, np.float64)
+    q[:, keep], t[:, keep] = q_kept, t_kept
     q /= np.linalg.norm(q, axis=-1, keepdims=True)
     return Solution(q, t, loss, initial, compile_s, run_s, chunk, calls, ran)
+
+
+def needed_joints(problem: Problem) -> tuple[Problem, np.ndarray]:
+    """``(problem on the needed joints, keep (J,) bool)``: the joints whose world transform
+    the solve uses — every residual point's joint, every optimised joint and all their
+    ancestors — with the problem's joint indices renumbered onto them (parents still
+    before children). Large rigs carry many joints no mapped point hangs from (DAZ's and
+    Rokoko's fingers, face and twist bones: 57 → 25 and 73 → 29 joints); their rotations
+    and translations come back unchanged, so forward kinematics inside the solve skips them."""
+    used = np.zeros(len(problem.parents), bool)
+    used[np.concatenate([problem.points, problem.rot_joints, problem.trans_joints]).astype(np.int64)] = True
+    keep = used | (ancestor_matrix(problem.parents)[:, used].any(axis=1))
+    if keep.all():
+        return problem, keep
+    new = np.cumsum(keep) - 1
+    parents = problem.parents[keep]
+    renumber = lambda joints: new[np.asarray(joints, np.int64)]  # noqa: E731
+    return replace(
+        problem, parents=np.where(parents < 0, -1, new[np.maximum(parents, 0)]), mapped=renumber(problem.mapped),
+        rot_joints=renumber(problem.rot_joints), trans_joints=renumber(problem.trans_joints),
+        contact_joints=renumber(problem.contact_joints), floor_joints=renumber(problem.floor_joints)), keep
 
 
 def device_description() -> str:

@@ -7,6 +7,7 @@ import {LibraryView} from './library.js';
 import {Player} from './player.js';
 import {Plots} from './plots.js';
 
+performance.mark('main');
 const $ = id => document.getElementById(id);
 const params = new URLSearchParams(location.search);
 const state = {
@@ -69,10 +70,15 @@ player.onFirstFrame = () => {
     if (list.getEntriesByName('first-contentful-paint').length) { observer.disconnect(); window.early.reveal(); }
   }).observe({type: 'paint', buffered: true});
 };
+// the joint spheres' lit program (left out of a linked take's first frame) is compiled once it is on the screen
+Promise.all([window.early.revealed, shown]).then(() => {
+  if (!player.jointsCompiled && player.figure) player.compileJoints();
+});
 player.holdEmpty = !!state.take;  // and draws nothing before its take: the first frame drawn is the take's
 player.onStop = () => { $('play').textContent = '▶'; writeUrl(); };
 player.onOrbit = () => { player.cameraMode = 'orbit'; $('camera').value = 'orbit'; };
 player.onCamera = () => { clearTimeout(player.urlTimer); player.urlTimer = setTimeout(writeUrl, 300); };
+performance.mark('player');
 const plots = new Plots($('plots'), t => player.setFrame(Math.round(t * player.fps)));
 const library = new LibraryView($('takes'), $('filter'), $('library-status'), id => openTake(id, true));
 // the tool panels (edits, retarget, video) see the page through these few hooks
@@ -114,9 +120,9 @@ async function openTake(id, fresh) {
   $('view-message').textContent = 'loading…';
   try {
     take = await loadTake(id);
+    performance.mark('take');
   } catch (e) {
-    const name = id.split('/').slice(1).join('/') || id;
-    const line = e.message.includes(name) ? e.message : `${name}: ${e.message}`;
+    const line = e.message;  // the server's line: the CLI's for the same file (usdmotion: error: FILE[:LINE]: ...)
     if (player.figure) {  // the take shown before stays, with the line under it
       $('view-message').textContent = line;
       $('view-message').className = 'error-text';
@@ -148,10 +154,11 @@ async function openTake(id, fresh) {
   if (segments) segments.setTake(take);
   player.setFrame(state.frame);
   if (edits) { edits.opened(take); retargeting.opened(take); }
+  player.draw();
   takeShown();
   $('view-message').textContent = 'body: loading…';
   // the body first, then the plots (their analysis would slow the body's first build on the server)
-  const glb = takeGlb(id);
+  const glb = window.early.revealed.then(() => takeGlb(id));
   await Promise.all([glb.catch(() => null).then(loadSeries), state.comTrace && take.comLoaded.then(applyTrace),
                      state.compare ? openCompare() : Promise.resolve(), (async () => {
     const ok = await figure.loadBody(glb);
@@ -346,8 +353,10 @@ async function start() {
   if (!state.take) player.warmUp();
   const opening = state.take ? openTake(state.take, false) : null;
   if (opening) {  // a linked take is drawn before the library is listed (hidden until then: index.html)
-    await Promise.race([shown, opening]);  // and read, and before the panels are loaded
-    await new Promise(resolve => requestAnimationFrame(() => setTimeout(resolve)));  // after the draw
+    // and read, and before the panels are loaded: once that frame is on the screen (revealed), so that
+    // neither the page's work nor the server's listing takes the two cores from the frame's compositing
+    await Promise.race([shown, opening]);
+    await window.early.revealed;
   }
   await library.load();  // the list of takes, at once
   const panels = loadPanels();

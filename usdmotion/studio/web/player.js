@@ -8,7 +8,7 @@ export class Player {
   constructor(canvas, onFrame) {
     this.canvas = canvas;
     this.onFrame = onFrame;
-    this.renderer = new THREE.WebGLRenderer({canvas, antialias: true, preserveDrawingBuffer: true});
+    this.renderer = new THREE.WebGLRenderer({canvas, antialias: window.early.antialias});  // index.html
     // no error checks after each shader compile and link: each is a round trip that waits for the GPU
     // process (busy compositing the page in software WebGL), and three's own shaders do not fail
     this.renderer.debug.checkShaderErrors = false;
@@ -208,6 +208,12 @@ export class Player {
       }
       if (f !== this.frame) this.setFrame(f);
     }
+    this.draw();
+  }
+
+  /** Draw the view if anything changed (the animation loop calls it; a take just opened draws its
+   *  first frame at once with it, not one animation frame later: a busy GPU process delays those). */
+  draw() {
     if (this.dirty && (this.figure || !this.holdEmpty)) {
       if (this.split && this.ghost) this.renderSplit();
       else this.renderer.render(this.scene, this.camera);
@@ -226,7 +232,6 @@ export class Player {
         if (this.firstPixelsAt === null) this.firstPixelsAt = performance.now();
         if (firstBody) this.bodyPixelsAt = performance.now();
       }
-      if (firstFrame && !this.jointsCompiled) this.compileJoints();
       if (firstFrame && this.onFirstFrame) this.onFirstFrame();
       if (this.playing) this.playLog.push([t, this.frame]);
       if (this.playLog.length > 4000) this.playLog.splice(0, 2000);
