@@ -157,7 +157,7 @@ def cross_rig(source_file: str, targets) -> list[dict]:
 def print_speed(console, s: dict) -> None:
     from rich.table import Table
 
-    from usdmotion.ops.retarget.solve import device_description
+    from usdmotion.ops.retarget.jax_runtime import device_description
 
     table = Table(title=f"{s['file']}: {s['source_joints']} -> {s['target_joints']} joints, {s['frames']} frames "
                         f"({s['parameters_per_frame']} parameters/frame, {device_description()}, float32)")
@@ -219,7 +219,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     from rich.console import Console
 
-    from usdmotion.ops.retarget.solve import device_description
+    from usdmotion.ops.retarget.jax_runtime import device_description
 
     console = Console(width=150)
     result = {"machine": {"python": platform.python_version(), "cpus": os.cpu_count(), "device": device_description(),

@@ -184,7 +184,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     import importlib
 
-    from usdmotion.ops.retarget.solve import device_description, enable_compilation_cache
+    from usdmotion.ops.retarget.jax_runtime import device_description, enable_compilation_cache
 
     importlib.import_module("usdmotion.ops.retarget.solve").DAMPING = args.damping
     name = "retarget_contacts" + ("" if args.damping == "fixed" else "_" + args.damping)

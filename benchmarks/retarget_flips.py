@@ -114,7 +114,7 @@ def main(argv=None) -> int:
     parser.add_argument("--pair", action="append", help="only pairs whose label contains this (repeatable)")
     parser.add_argument("--fresh", action="store_true", help="recompute cached solves")
     args = parser.parse_args(argv)
-    from usdmotion.ops.retarget.solve import enable_compilation_cache
+    from usdmotion.ops.retarget.jax_runtime import enable_compilation_cache
 
     enable_compilation_cache()
     report = []

@@ -230,7 +230,7 @@ def main(argv=None) -> int:
     from rich.console import Console
     from rich.table import Table
 
-    from usdmotion.ops.retarget.solve import device_description, enable_compilation_cache
+    from usdmotion.ops.retarget.jax_runtime import device_description, enable_compilation_cache
 
     enable_compilation_cache()
     console = Console(width=160)

@@ -145,7 +145,7 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--pairs", default="", help="comma-separated texts: only the pairs whose label contains one")
     args = parser.parse_args(argv)
-    from usdmotion.ops.retarget.solve import enable_compilation_cache
+    from usdmotion.ops.retarget.jax_runtime import enable_compilation_cache
 
     enable_compilation_cache()
     wanted = [w.strip().lower() for w in args.pairs.split(",") if w.strip()]

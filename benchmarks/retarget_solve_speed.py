@@ -95,7 +95,8 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     from usdmotion.ops.contacts import detect_contacts
     from usdmotion.ops.retarget import pipeline
-    from usdmotion.ops.retarget.solve import device_description, enable_compilation_cache, needed_joints
+    from usdmotion.ops.retarget.jax_runtime import device_description, enable_compilation_cache
+    from usdmotion.ops.retarget.solve import needed_joints
 
     solve_module = importlib.import_module("usdmotion.ops.retarget.solve")
     enable_compilation_cache()

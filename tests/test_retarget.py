@@ -174,7 +174,8 @@ def test_model_gain_is_the_reduction_of_the_autodiff_linearisation(trans):
     import jax
     import jax.numpy as jnp
 
-    from usdmotion.ops.retarget.solve import Problem, make_apply, make_model_gain, make_residuals
+    from usdmotion.ops.retarget.lm_model import make_model_gain
+    from usdmotion.ops.retarget.solve import Problem, make_apply, make_residuals
     from usdmotion.rotations import quat_log
 
     problem, q, t, targets = small_problem()

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from usdmotion.io import read_motion
-from usdmotion.ops.retarget.solve import enable_compilation_cache
+from usdmotion.ops.retarget.jax_runtime import enable_compilation_cache
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 from retarget_residual import Residual, joint_errors  # noqa: E402

@@ -213,7 +213,7 @@ def retarget_task(job: Job, row: dict) -> dict:
     cache in the worker process and on disk across takes."""
     from usdmotion.io import read_motion
     from usdmotion.ops.retarget.files import retarget_files
-    from usdmotion.ops.retarget.solve import enable_compilation_cache
+    from usdmotion.ops.retarget.jax_runtime import enable_compilation_cache
 
     enable_compilation_cache()
     motion = _read(job)

@@ -93,7 +93,7 @@ def retarget(
 ) -> None:
     """Retarget a motion onto a target skeleton, or onto its own with joints removed/added."""
     from usdmotion.ops.retarget.files import retarget_files
-    from usdmotion.ops.retarget.solve import enable_compilation_cache
+    from usdmotion.ops.retarget.jax_runtime import enable_compilation_cache
 
     enable_compilation_cache()
     motion = drop_meshes(read.read(source), source)

@@ -13,7 +13,7 @@ from usdmotion.kinematics import fk_arrays, local_translations
 from usdmotion.motion import Motion
 from usdmotion.ops.retarget.losses import frame_losses
 from usdmotion.ops.retarget.problem import ADAM_ITERATIONS, LM_ITERATIONS
-from usdmotion.ops.retarget.solve import device_description
+from usdmotion.ops.retarget.jax_runtime import device_description
 
 
 def loss_stats(per_frame: np.ndarray, n_mapped: int) -> dict:

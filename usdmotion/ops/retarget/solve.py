@@ -31,10 +31,8 @@ chunk size (frames are solved in fixed-size chunks, the last one padded).
 
 from __future__ import annotations
 
-import os
 import time
 from dataclasses import dataclass, replace
-from pathlib import Path
 
 import numpy as np
 
@@ -45,6 +43,7 @@ from usdmotion.ops.retarget.problem import (ADAM_ITERATIONS, ADAM_LR, LM_ATOL, L
                                             LM_LAMBDA_MAX, LM_LAMBDA_MIN, LM_NULL_DAMPING, LM_RTOL, LM_RTOL_TOTAL,
                                             LM_UP, Problem, masks)
 from usdmotion.ops.retarget.adam import make_adam
+from usdmotion.ops.retarget.lm_model import make_model_gain
 from usdmotion.ops.retarget.rotation_terms import make_rotation_terms
 from usdmotion.ops.retarget.tree_step import make_tree_step
 from usdmotion.progress import Progress
@@ -224,45 +223,6 @@ def make_lm_step(problem: Problem, linear: str = "tree"):
         return step.at[:, : 3 * n_rot].set(omega.reshape(step.shape[0], -1))
 
     return lm_step
-
-
-def make_model_gain(problem: Problem):
-    """``(world_p (B,J,3), r (B,P,3), w (B,P), step (B,P'), rot_r=None (B,R,3), rot_w=None (B,R))
-    -> (B,)``: the loss reduction the Gauss–Newton model predicts for ``step``,
-    ``m(0) − m(step)`` with ``m(x) = Σ_p w_p ‖r_p + J_p x‖² + Σ_k w_k ‖ρ_k + Σ_{j ⪯ k} x_j‖²``:
-    a point moves by ``Σ_j x_j × (p_m − p_j)`` over the rotation joints above it plus the
-    translation increments above it, a world rotation residual by the increments of the
-    rotation joints at or above it (the Jacobians :func:`make_tree_step` uses). Costs two
-    small matrix products per iteration; Nielsen's damping update needs it."""
-    import jax.numpy as jnp
-
-    anc = ancestor_matrix(problem.parents)
-    points = problem.points
-    n_rot, n_trans = len(problem.rot_joints), len(problem.trans_joints)
-    rot_mask, trans_mask = (jnp.asarray(m) for m in masks(problem))  # (P, R), (P, T)
-    at_or_above = anc | np.eye(len(problem.parents), dtype=bool)
-    rot_rot = jnp.asarray(at_or_above[problem.rot_joints][:, problem.rot_joints].T.astype(np.float32))  # (R, R)
-    rot_j, point_j = jnp.asarray(problem.rot_joints), jnp.asarray(points)
-
-    def gain(world_p, r, w, step, rot_r=None, rot_w=None):
-        x = step[:, : 3 * n_rot].reshape(step.shape[0], n_rot, 3)
-        pm = world_p[:, point_j]
-        moved = jnp.zeros_like(r)
-        if n_rot:
-            spin = jnp.einsum("pr,brk->bpk", rot_mask.astype(r.dtype), x)
-            lever = jnp.einsum("pr,brk->bpk", rot_mask.astype(r.dtype), jnp.cross(x, world_p[:, rot_j]))
-            moved = jnp.cross(spin, pm) - lever
-        if n_trans:
-            delta = step[:, 3 * n_rot:].reshape(step.shape[0], n_trans, 3)
-            moved = moved + jnp.einsum("pt,btk->bpk", trans_mask.astype(r.dtype), delta)
-        # m(0) − m(x) = −Σ w (2 r·Jx + ‖Jx‖²)
-        out = -jnp.einsum("bpk,bpk,bp->b", moved, 2.0 * r + moved, w)
-        if rot_w is not None and n_rot:
-            turned = jnp.einsum("kr,brc->bkc", rot_rot.astype(r.dtype), x)
-            out = out - jnp.einsum("bkc,bkc,bk->b", turned, 2.0 * rot_r + turned, rot_w)
-        return out
-
-    return gain
 
 
 def _make_lm(problem: Problem, linear: str = "tree", damping: str = LM_DAMPING_UPDATE):
@@ -526,37 +486,3 @@ def needed_joints(problem: Problem) -> tuple[Problem, np.ndarray]:
         problem, parents=np.where(parents < 0, -1, new[np.maximum(parents, 0)]), mapped=renumber(problem.mapped),
         rot_joints=renumber(problem.rot_joints), trans_joints=renumber(problem.trans_joints),
         contact_joints=renumber(problem.contact_joints), floor_joints=renumber(problem.floor_joints)), keep
-
-
-def device_description() -> str:
-    """The device JAX computes on, e.g. ``"cpu"`` or ``"gpu (NVIDIA H100)"``."""
-    import jax
-
-    device = jax.devices()[0]
-    kind = getattr(device, "device_kind", "")
-    return device.platform + (f" ({kind})" if kind and kind.lower() != device.platform else "")
-
-
-def enable_compilation_cache() -> str | None:
-    """Turn on JAX's persistent compilation cache (for command-line runs); returns its folder.
-
-    Folder: ``$USDMOTION_JAX_CACHE``, else ``$XDG_CACHE_HOME/usdmotion/jax`` (default
-    ``~/.cache/usdmotion/jax``); ``USDMOTION_JAX_CACHE=off`` disables it. A cache folder
-    the user already configured for JAX is left alone. Repeat runs on the same skeletons
-    then skip most of the XLA compile time.
-    """
-
-    import jax
-
-    setting = os.environ.get("USDMOTION_JAX_CACHE", "")
-    if setting.lower() in ("off", "0", "no", "false") or jax.config.jax_compilation_cache_dir:
-        return jax.config.jax_compilation_cache_dir or None
-    cache_home = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
-    folder = Path(setting) if setting else cache_home / "usdmotion" / "jax"
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except OSError:
-        return None
-    jax.config.update("jax_compilation_cache_dir", str(folder))
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
-    return str(folder)
