@@ -28,8 +28,8 @@ fixed|nielsen]`` (quick: the walk pairs only; ``--pairs bandai,1.2x``: the pairs
 contains one of the texts; ``--damping``: LM's λ update, see
 ``usdmotion/ops/retarget/problem.py``). The frames/s column also gives the LM iterations of
 the solve (the most any chunk ran): deterministic, unlike the timings on a loaded machine.
-Writes ``benchmarks/results/retarget_contacts.json`` (``retarget_contacts_nielsen.json``
-with ``--damping nielsen``).
+Writes ``benchmarks/results/retarget_contacts.json`` (``retarget_contacts_fixed.json``
+with ``--damping fixed``).
 """
 
 from __future__ import annotations
@@ -177,8 +177,8 @@ def profile_maps() -> list[dict]:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="the walk pairs only")
-    parser.add_argument("--damping", choices=("fixed", "nielsen"), default="fixed",
-                        help="LM's damping update (default fixed, the library's default)")
+    parser.add_argument("--damping", choices=("fixed", "nielsen"), default="nielsen",
+                        help="LM's damping update (default nielsen, the library's default)")
     parser.add_argument("--pairs", default="", help="comma-separated texts: only the pairs whose label contains one "
                                                       "(case-insensitive), e.g. 'bandai,1.2x'")
     args = parser.parse_args(argv)
@@ -187,7 +187,7 @@ def main(argv=None) -> int:
     from usdmotion.ops.retarget.jax_runtime import device_description, enable_compilation_cache
 
     importlib.import_module("usdmotion.ops.retarget.solve").DAMPING = args.damping
-    name = "retarget_contacts" + ("" if args.damping == "fixed" else "_" + args.damping)
+    name = "retarget_contacts" + ("" if args.damping == "nielsen" else "_" + args.damping)
     enable_compilation_cache()
     wanted = [w.strip().lower() for w in args.pairs.split(",") if w.strip()]
     pairs = [p for p in PAIRS if (not args.quick or p[1] is WALK)
