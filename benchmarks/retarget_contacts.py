@@ -86,17 +86,21 @@ def scaled_legs(motion, factor: float):
     return dataclasses.replace(motion, offsets=offsets)
 
 
+def load_pair(source_spec, target_spec, target_kw) -> tuple:
+    """``(source, target, source path, target path, retarget options)`` of a pair of
+    :data:`PAIRS`: a float target is the source with its legs scaled by it."""
+    path, kw, first, stop = source_spec
+    source = read(path, (first, stop), **kw)
+    if isinstance(target_spec, float):
+        options = {"lengths": "target", "root_scale": "legs"}
+        return source, scaled_legs(source, target_spec), path, f"{path} (legs x{target_spec})", options
+    return source, read(target_spec, **target_kw), path, target_spec, {}
+
+
 def run_pair(label, source_spec, target_spec, target_kw) -> dict:
     from usdmotion.ops.retarget.pipeline import retarget
 
-    path, kw, first, stop = source_spec
-    source = read(path, (first, stop), **kw)
-    options = {}
-    if isinstance(target_spec, float):
-        target, target_path = scaled_legs(source, target_spec), f"{path} (legs x{target_spec})"
-        options = {"lengths": "target", "root_scale": "legs"}
-    else:
-        target, target_path = read(target_spec, **target_kw), target_spec
+    source, target, path, target_path, options = load_pair(source_spec, target_spec, target_kw)
     from usdmotion.ops.contacts import detect_contacts
 
     contacts = detect_contacts(source, source=path)

@@ -32,7 +32,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import REPO, SHARED_DATA, print_table, write_results  # noqa: E402
-from retarget_contacts import PAIRS, read, scaled_legs  # noqa: E402
+from retarget_contacts import PAIRS, load_pair  # noqa: E402
 
 
 def contact_setup(source, target, options, path, target_path):
@@ -51,7 +51,7 @@ def contact_setup(source, target, options, path, target_path):
     return setup, terms, q0, rot_terms
 
 
-def explain_pair(label, source_spec, target_spec) -> dict:
+def explain_pair(label, source_spec, target_spec, target_kw) -> dict:
     from usdmotion.kinematics import fk_arrays
     from usdmotion.ops.retarget import pipeline
     from usdmotion.ops.retarget.contact_terms import leg_joints
@@ -59,14 +59,7 @@ def explain_pair(label, source_spec, target_spec) -> dict:
     from usdmotion.ops.retarget.leg_ik import legs_of, place_legs
     from usdmotion.rotations import quat_conjugate, quat_rotate
 
-    path, kw, first, stop = source_spec
-    source = read(path, (first, stop), **kw)
-    options = {}
-    if isinstance(target_spec, float):
-        target, target_path = scaled_legs(source, target_spec), f"{path} (legs x{target_spec})"
-        options = {"lengths": "target", "root_scale": "legs"}
-    else:
-        target, target_path = read(target_spec), target_spec
+    source, target, path, target_path, options = load_pair(source_spec, target_spec, target_kw)
     setup, terms, q0, rot_terms = contact_setup(source, target, options, path, target_path)
     parents, mapped = setup.rig.parents, setup.mapped
     q_p, t_p, _ = pipeline._solve(setup, q0, None, rot_terms, "lm", None, None, terms.floor)
@@ -150,14 +143,14 @@ def main(argv=None) -> int:
     enable_compilation_cache()
     wanted = [w.strip().lower() for w in args.pairs.split(",") if w.strip()]
     rows = []
-    for label, source_spec, target_spec, _ in PAIRS:
+    for label, source_spec, target_spec, target_kw in PAIRS:
         if wanted and not any(w in label.lower() for w in wanted):
             continue
         missing = [p for p in (source_spec[0], target_spec) if isinstance(p, str) and not (SHARED_DATA / p).exists()]
         if missing:
             print(f"skip {label}: {missing[0]} not found under {SHARED_DATA}")
             continue
-        rows.append(explain_pair(label, source_spec, target_spec))
+        rows.append(explain_pair(label, source_spec, target_spec, target_kw))
         print(f"{label}: largest rises (cm²) " + ", ".join(f"{k} {v:.2f}" for k, v in
                                                           rows[-1]["rise_cm2_by_joint"].items()), flush=True)
     causes = list(rows[0]["rise_cm2"]) if rows else []
