@@ -210,6 +210,21 @@ def test_the_lm_contact_phase_wins_back_rms(long_legs, monkeypatch):
     assert with_phase["feet"]["skate_mean_cm_s"] <= without["feet"]["skate_mean_cm_s"] + 0.01
 
 
+def test_the_temporal_term_runs_with_contacts(long_legs):
+    """``smooth=`` with contacts: the LM contact phase turns a subset of the joints, and the
+    temporal term's per-joint weights must be cut to the same subset (they were not: a shape
+    error from JAX). The result still plants the feet as the solve without the term does."""
+    from usdmotion.ops.retarget.pipeline import retarget
+
+    source, contacts, result = long_legs
+    smoothed = retarget(source, scaled_legs(source, 1.2), contacts=contacts, lengths="target", root_scale="legs",
+                        smooth=0.05)
+    assert np.isfinite(smoothed.motion.rotations).all()
+    feet, plain_feet = smoothed.report["quality"]["feet"], result.report["quality"]["feet"]
+    assert feet["skate_mean_cm_s"] <= max(1.0, plain_feet["skate_mean_cm_s"] + 0.01)
+    assert feet["penetration_max_cm"] <= 0.5
+
+
 def test_longer_legs_scale_the_root_trajectory(long_legs):
     source, contacts, result = long_legs
     src = joint_positions(source) * source.meters_per_unit

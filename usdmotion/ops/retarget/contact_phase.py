@@ -46,7 +46,8 @@ def contact_phase(setup, terms, legs, q: np.ndarray, t: np.ndarray, problem: Pro
     keep = turn[base.rot_joints]
     problem = dataclasses.replace(base, rot_joints=base.rot_joints[keep], contact_joints=terms.joints, up=terms.up,
                                   orders=tuple(o for o, k in zip(base.orders, keep) if k),
-                                  prior=base.prior[keep] if len(base.prior) else base.prior)
+                                  prior=base.prior[keep] if len(base.prior) else base.prior,
+                                  smooth=base.smooth[keep] if len(base.smooth) else base.smooth)
     centre = setup.translations[:, anchor]
     t0 = t.copy()
     t0[:, anchor] -= centre
