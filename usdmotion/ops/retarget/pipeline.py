@@ -457,7 +457,7 @@ def _solve(setup: Setup, q0: np.ndarray, terms, rot_terms, method: str, iteratio
         q, t, _ = place_legs(q, t, *place)
         compiled = 0.0
         if CONTACT_ITERATIONS:  # ... the body re-fits the source around the planted feet, and again
-            q, t, phase = contact_phase(setup, terms, legs, q, t, _problem(setup, *rot_terms), CONTACT_ITERATIONS)
+            q, t, phase = contact_phase(setup, terms, legs, q, t, problem, CONTACT_ITERATIONS)
             q, t, _ = place_legs(q, t, *place)
             compiled = phase.compile_s
         solution = dataclasses.replace(solution, compile_s=solution.compile_s + compiled,
