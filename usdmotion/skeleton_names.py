@@ -236,9 +236,14 @@ def _detect_profile(names: tuple[str, ...]) -> str | None:
 def rig_family(names: Iterable[str]) -> str | None:
     """The rig family to show for a skeleton: :func:`detect_profile`'s, else a profile used only
     where named (``"auto_map": false``, e.g. CMU ASF bone names) whose signature names are all
-    there; ``None`` if neither. A label for people (library listings), never a joint map."""
-    names = list(names)
-    found = detect_profile(names)
+    there; ``None`` if neither. A label for people (library listings), never a joint map.
+    Cached per skeleton, like :func:`detect_profile` (a library's takes share a few)."""
+    return _rig_family(tuple(names))
+
+
+@lru_cache(maxsize=256)
+def _rig_family(names: tuple[str, ...]) -> str | None:
+    found = _detect_profile(names)
     if found is not None:
         return found
     table = names_by_key(names, _profile_key)
