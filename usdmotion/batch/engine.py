@@ -139,7 +139,7 @@ def _ignore_interrupts_plugin():
     return IgnoreInterrupts()
 
 
-#: Modules each operation's tasks import (loaded once per worker by :func:`warm_up`).
+#: Modules each operation's tasks import (loaded once per worker, on its first task: :func:`run_task`).
 OPERATION_MODULES = {
     "convert": ("usdmotion.io.convert", "usdmotion.io.usd", "usdmotion.io.bvh", "usdmotion.skeleton_names"),
     "analyze": ("usdmotion.io", "usdmotion.ops.analyse", "usdmotion.ops.analyse.report", "usdmotion.anthropometry",
@@ -169,7 +169,8 @@ def prepare_process(operation: str) -> None:
     import its modules and run one take of the bundled walk through the same task code in a
     temporary folder (:data:`WARM_TAKE_OPERATIONS`).
 
-    A Dask worker runs this at start (:func:`warm_up`); the benchmark's sequential loop runs it
+    A Dask worker runs this before its first task (:func:`run_task`; :func:`warm_up` for the
+    benchmark and tests); the benchmark's sequential loop runs it
     too before its clock, so both are timed warm. Once per process and operation.
     """
     if operation in _PREPARED:
