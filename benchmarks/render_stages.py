@@ -62,11 +62,11 @@ def profile(motion, frames: int, extra: dict, out: Path) -> dict:
         for i in range(len(plan.frames)):
             marks = [clocks()]
             if i % 32 == 0:
-                actor.prepare(np.arange(i, min(i + 32, len(plan.frames))))
+                chunk = actor.skin(np.arange(i, min(i + 32, len(plan.frames))))
             marks.append(clocks())
             views.renderer._platform.make_current()
-            actor.update(i % 32)
-            views.shadow.update(actor.joints[i % 32])
+            actor.update(i % 32, chunk)
+            views.shadow.update(chunk.joints[i % 32])
             scene.set_pose(scene.camera_node, plan.camera.poses[i])
             inner._update_context(scene, flags)
             marks.append(clocks())

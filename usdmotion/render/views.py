@@ -117,14 +117,8 @@ class Actor:
         normals = normals @ self.turn.T
         return Skinned(joints, self._space(positions) - self.inset * normals, normals)
 
-    def prepare(self, index: np.ndarray) -> None:
-        """Skin the output frames ``index`` for :meth:`update` (``self.joints``: ``(K, J, 3)`` m)."""
-        self.chunk = self.skin(index)
-        self.joints = self.chunk.joints
-
-    def update(self, k: int, chunk: Skinned | None = None) -> None:
-        """Load frame ``k`` of ``chunk`` (default: the last :meth:`prepare`'s) into the meshes."""
-        chunk = self.chunk if chunk is None else chunk
+    def update(self, k: int, chunk: Skinned) -> None:
+        """Load frame ``k`` of ``chunk`` (from :meth:`skin`) into the meshes."""
         if self.body is not None:
             self.body_mesh.update(chunk.positions[k], chunk.normals[k])
         if self.stick is not None:
@@ -222,8 +216,6 @@ class Views:
 
     def _add_static(self, motion: Motion, other: Motion | None) -> None:
         plan, options = self.plan, self.options
-        main = self.actors[0]
-        main.prepare(np.arange(min(len(plan.frames), 1)))
         joints = self.frame_joints
         height = float(np.ptp(joints[..., 1])) or 1.0
         forward = forward_direction(joints[:, 0], height)
@@ -243,7 +235,7 @@ class Views:
                                    pixel_angle=2 * np.tan(camera.yfov / 2) / plan.panel[1])
                 self.view_grids.append(meshes[-1])
                 static += meshes
-        static += trace_meshes(motion, options.traces, plan.frames, joints, distance, main.body)
+        static += trace_meshes(motion, options.traces, plan.frames, joints, distance, self.actors[0].body)
         for scene in self.scenes:
             add_lights(scene, forward)
             for mesh in static:
