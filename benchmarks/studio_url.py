@@ -1,7 +1,7 @@
 """Where a fresh page on a take's URL spends its time before the first frame (issue 13's `url` row of
 ``benchmarks/studio.py``, taken apart).
 
-    PYTHONPATH=$PWD .venv/bin/python benchmarks/studio_url.py [--runs 3] [--frames 5000] [--peer DIR]
+    PYTHONPATH=$PWD .venv/bin/python benchmarks/studio_url.py [--runs 3] [--frames 5000] [--peer DIR] [--link]
 
 Each run starts a fresh headless Chromium (software WebGL, the tests' flags) on a copy of the
 5,000-frame take the server has not read, opens ``/?take=...`` and records, in ms from navigation:
@@ -59,7 +59,8 @@ READ = """() => {
   const waits = window.glWaits.filter(([, t]) => t < p.firstPixelsAt);
   return {request: nav.requestStart, response: nav.responseStart, dom_interactive: nav.domInteractive,
           main_js: entry('/app/main.js').responseEnd,
-          positions: entry('/api/positions').responseStart,
+          positions: entry('/api/positions').responseStart, positions_end: entry('/api/positions').responseEnd,
+          skeleton: entry('/api/skeleton').responseStart, skeleton_end: entry('/api/skeleton').responseEnd,
           first_render: p.firstDrawnAt, first_pixels: p.firstPixelsAt,
           on_screen: (performance.getEntriesByName('first-contentful-paint')[0] || {startTime: NaN}).startTime,
           body_pixels: p.bodyPixelsAt,
@@ -67,22 +68,27 @@ READ = """() => {
           gl_waits: waits.map(([name, , dt]) => [name, dt])};
 }"""
 
-COLUMNS = ("request", "response", "dom_interactive", "main_js", "positions", "first_render", "first_pixels",
+COLUMNS = ("request", "response", "dom_interactive", "main_js", "skeleton", "skeleton_end", "positions",
+           "positions_end", "first_render", "first_pixels",
            "on_screen", "body_pixels", "gl_wait_total")
 
 
-def one_run(p, base: str, take_id: str) -> dict:
+def one_run(p, base: str, take_ids: list[str]) -> dict:
+    """The row of the last of ``take_ids``, each opened in turn in a new page of one fresh browser
+    (two: ``--link``, the second a link opened in a running browser)."""
     from test_studio_browser import ARGS, CHROMIUM
 
     browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
     try:
-        page = browser.new_page(viewport={"width": 1800, "height": 1200})
-        page.add_init_script("window.studioTimings = true")
-        page.add_init_script(GL_LOG)
-        page.goto(f"{base}/?take={take_id}")
-        page.wait_for_function("window.studio && window.studio.player.bodyPixelsAt !== null", timeout=300_000)
-        page.wait_for_function("performance.getEntriesByName('first-contentful-paint').length", timeout=60_000)
-        row = page.evaluate(READ)
+        for take_id in take_ids:
+            page = browser.new_page(viewport={"width": 1800, "height": 1200})
+            page.add_init_script("window.studioTimings = true")
+            page.add_init_script(GL_LOG)
+            page.goto(f"{base}/?take={take_id}")
+            page.wait_for_function("window.studio && window.studio.player.bodyPixelsAt !== null", timeout=300_000)
+            page.wait_for_function("performance.getEntriesByName('first-contentful-paint').length", timeout=60_000)
+            row = page.evaluate(READ)
+            page.close()  # as benchmarks/studio.py closes the page before its link
     finally:
         browser.close()
     by_kind = collections.Counter()
@@ -100,6 +106,8 @@ def main() -> None:
     ap.add_argument("--runs", type=int, default=3)
     ap.add_argument("--frames", type=int, default=5000)
     ap.add_argument("--peer", type=Path, help="another checkout to compare with, alternated run by run")
+    ap.add_argument("--link", action="store_true", help="time a second page, opened in the running browser on "
+                                                         "another unread take (the link row of studio.py)")
     args = ap.parse_args()
     import contextlib
 
@@ -110,7 +118,8 @@ def main() -> None:
     tmp = Path(tempfile.mkdtemp(prefix="studio_url_"))
     take = make_take(tmp, args.frames)
     trees = [ROOT, *([args.peer.resolve()] if args.peer else [])]
-    ids = {tree: unread_copies(take, f"unread{k}_", args.runs) for k, tree in enumerate(trees)}
+    pages = 2 if args.link else 1
+    ids = {tree: unread_copies(take, f"unread{k}_", args.runs * pages) for k, tree in enumerate(trees)}
     runs = {tree: [] for tree in trees}
     loads = [os.getloadavg()[0]]
     with contextlib.ExitStack() as stack, sync_playwright() as p:
@@ -118,11 +127,12 @@ def main() -> None:
                  for k, tree in enumerate(trees)}
         for i in range(args.runs):
             for tree in trees:
-                runs[tree].append(one_run(p, bases[tree], ids[tree][i]))
+                runs[tree].append(one_run(p, bases[tree], ids[tree][i * pages:(i + 1) * pages]))
     loads.append(os.getloadavg()[0])
     rows = runs[ROOT]
     print(f"load average (1 min): {min(loads):.1f}-{max(loads):.1f}")
-    print(f"fresh page on the URL of an unread {args.frames}-frame take; ms from navigation, median of {args.runs}")
+    opened = "a new page of a running browser" if args.link else "fresh page"
+    print(f"{opened} on the URL of an unread {args.frames}-frame take; ms from navigation, median of {args.runs}")
     print("".join(f"{c:>{max(9, len(c) + 1)}}" for c in COLUMNS))
     medians = {c: statistics.median(r[c] for r in rows) for c in COLUMNS}
     print("".join(f"{medians[c]:>{max(9, len(c) + 1)}.0f}" for c in COLUMNS))

@@ -260,8 +260,8 @@ def test_url_reopens_the_same_frame_and_camera(studio, browser, page):
         assert other.evaluate("window.studio.player.cameraPose()") == pose
         assert other.inner_text("#range") == "loop 0–77"
         # the page asked for the take's arrays before its scripts ran, and for its body once it could
-        # draw (building it would slow the first frame), each once, and drew into the WebGL context it
-        # opened first thing
+        # draw (building it would slow the first frame), each once, and drew into the one WebGL context
+        # it opened (index.html's openContext, once the take's arrays were read)
         assert [asked.count(what) for what in ("skeleton", "positions", "glb")] == [1, 1, 1], asked
         assert asked.index("positions") < asked.index("takes") and asked.index("positions") < asked.index("glb")
         assert other.evaluate("window.studio.player.renderer.getContext() === window.early.gl")

@@ -8,6 +8,27 @@ let addons = null;
 const loadAddons = () => addons || (addons = Promise.all([import('three/addons/loaders/GLTFLoader.js'),
                                                          import('three/addons/utils/SkeletonUtils.js')]));
 
+/** The material of the stick figures' bones and the floor grid: lines coloured per vertex. A raw shader
+ *  of a few lines instead of three.js's LineBasicMaterial (its program carries every chunk three.js
+ *  may need): software WebGL (SwiftShader) compiles it before the first frame of a take, with the
+ *  page waiting, 127 -> ? ms after a fresh start. */
+export function lineMaterial({opacity = 1, transparent = false, depthTest = true} = {}) {
+  return new THREE.RawShaderMaterial({
+    glslVersion: THREE.GLSL3, transparent, depthTest, uniforms: {opacity: {value: opacity}},
+    vertexShader: `uniform mat4 modelViewMatrix, projectionMatrix;
+in vec3 position, color;
+out vec3 vColor;
+void main() { vColor = color; gl_Position = projectionMatrix * modelViewMatrix * vec4(position, 1.0); }`,
+    fragmentShader: `precision mediump float;
+uniform float opacity;
+in vec3 vColor;
+out vec4 colour;
+void main() {  // linear colours (three.js's working space) to the canvas's sRGB, as three.js's own shaders end
+  vec3 srgb = mix(1.055 * pow(vColor, vec3(1.0 / 2.4)) - 0.055, 12.92 * vColor, vec3(lessThanEqual(vColor, vec3(0.0031308))));
+  colour = vec4(srgb, opacity);
+}`});
+}
+
 export class Figure {
   constructor(take, {color = 0x1f5fbf, opacity = 1} = {}) {
     this.take = take;
@@ -24,8 +45,7 @@ export class Figure {
     const rgb = new THREE.Color(color).toArray();
     lineGeometry.setAttribute('color', new THREE.BufferAttribute(
       Float32Array.from({length: this.bones.length * 6}, (_, i) => rgb[i % 3]), 3));
-    this.stick = new THREE.LineSegments(lineGeometry, new THREE.LineBasicMaterial({
-      vertexColors: true, toneMapped: false, transparent, opacity, depthTest: !transparent}));
+    this.stick = new THREE.LineSegments(lineGeometry, lineMaterial({transparent, opacity, depthTest: !transparent}));
     const sphere = new THREE.SphereGeometry(0.025, 10, 8);
     this.joints = new THREE.InstancedMesh(sphere,
       new THREE.MeshStandardMaterial({color, transparent, opacity}), this.J);

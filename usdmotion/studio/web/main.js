@@ -54,7 +54,12 @@ function writeUrl() {
   history.replaceState(null, '', `?${p}`);
 }
 
-const player = new Player($('canvas'), frame => {
+// A linked take's arrays (asked for by index.html) are read before the player opens the WebGL context,
+// which waits for the browser's GPU process to start (see index.html): they are read meanwhile.
+const linkedId = state.take;
+let linkedTake = linkedId ? loadTake(linkedId) : null;
+if (linkedTake) await linkedTake.catch(() => null);  // a failure is shown by openTake
+const player = new Player(frame => {
   const t = frame / player.fps;
   $('readout').textContent = `frame ${frame} / ${player.frames - 1} · ${t.toFixed(3)} s`;
   $('scrub').value = frame;
@@ -119,7 +124,9 @@ async function openTake(id, fresh) {
   $('welcome').hidden = true;
   $('view-message').textContent = 'loading…';
   try {
-    take = await loadTake(id);
+    const loading = linkedTake && id === linkedId ? linkedTake : loadTake(id);
+    linkedTake = null;
+    take = await loading;
     performance.mark('take');
   } catch (e) {
     const line = e.message;  // the server's line: the CLI's for the same file (usdmotion: error: FILE[:LINE]: ...)

@@ -2,13 +2,14 @@
 // dropped, never slowed), loop range, compare ghost and stroboscope.
 import * as THREE from 'three';
 import {OrbitControls} from 'three/addons/controls/OrbitControls.js';
-import {Figure} from './figure.js';
+import {Figure, lineMaterial} from './figure.js';
 
 export class Player {
-  constructor(canvas, onFrame) {
+  constructor(onFrame) {
+    const {canvas, gl, antialias} = window.early.openContext();  // index.html (#canvas; blocks until the GPU process runs)
     this.canvas = canvas;
     this.onFrame = onFrame;
-    this.renderer = new THREE.WebGLRenderer({canvas, antialias: window.early.antialias});  // index.html
+    this.renderer = new THREE.WebGLRenderer({canvas, context: gl, antialias});
     // no error checks after each shader compile and link: each is a round trip that waits for the GPU
     // process (busy compositing the page in software WebGL), and three's own shaders do not fail
     this.renderer.debug.checkShaderErrors = false;
@@ -20,6 +21,8 @@ export class Player {
     sun.position.set(3, 6, 4);
     this.scene.add(sun);
     this.grid = new THREE.GridHelper(40, 80, 0x888888, 0xbbbbbb);
+    this.grid.material.dispose();
+    this.grid.material = lineMaterial();  // the stick figures' program (figure.js)
     this.scene.add(this.grid);
     this.camera = new THREE.PerspectiveCamera(35, 16 / 9, 0.05, 200);
     this.controls = new OrbitControls(this.camera, canvas);
