@@ -26,6 +26,9 @@ server has not read) and their medians reported, against a ``usdmotion studio`` 
 ``git worktree add /tmp/main main`` and a link to this checkout's ``usdmotion/studio/web/node_modules``)
 runs the same rows against that checkout's studio, alternated run by run with ours, and prints the
 ratios of the medians (ours / peer): the comparison that holds on a loaded machine.
+The ``floor`` line is what the browser alone costs: ``--runs`` fresh browsers on a page that only opens
+a WebGL2 context, clears it and reads one pixel back (no server, no three.js), in the same run: the
+``url`` row cannot be below it (the GPU process starting is most of it).
 Also: how soon a library of ``--library`` files is listed and filled in.
 Prints a table; writes ``benchmarks/results/studio.json``.
 """
@@ -128,6 +131,38 @@ def links(p, trees: list[Path], lib: Path, tmp: Path, runs: int, play_s: float) 
     return rows
 
 
+#: The floor of the ``url`` row: a page that only opens a WebGL2 context, clears it and reads one pixel back,
+#: and shows one word (its first contentful paint), in a fresh browser with the same flags.
+FLOOR_PAGE = """<!doctype html><p>floor</p><canvas width=1280 height=720></canvas><script>
+const gl = document.querySelector('canvas').getContext('webgl2');
+gl.clearColor(0.5, 0.5, 0.5, 1); gl.clear(gl.COLOR_BUFFER_BIT);
+gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, new Uint8Array(4));
+window.floorPixels = performance.now();
+</script>"""
+
+
+def floor_runs(p, base: str, runs: int) -> list[dict]:
+    """``runs`` fresh browsers on :data:`FLOOR_PAGE` (answered by Playwright's router, no server):
+    seconds from navigation to the pixel read back and to the first contentful paint."""
+    from test_studio_browser import ARGS, CHROMIUM
+
+    rows = []
+    for _ in range(runs):
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
+        try:
+            page = browser.new_page(viewport={"width": 1800, "height": 1200})
+            page.route(f"{base}/floor", lambda route: route.fulfill(body=FLOOR_PAGE, content_type="text/html"))
+            page.goto(f"{base}/floor")
+            page.wait_for_function("window.floorPixels && performance.getEntriesByName('first-contentful-paint')"
+                                   ".length", timeout=60_000)
+            pixels, shown = page.evaluate("[window.floorPixels, performance.getEntriesByName("
+                                          "'first-contentful-paint')[0].startTime]")
+            rows.append({"pixels_s": pixels / 1000, "on_screen_s": shown / 1000})
+        finally:
+            browser.close()
+    return rows
+
+
 def median_row(rows: list[dict]) -> dict:
     """The median of each number over ``rows`` (the canvas size of the first)."""
     return {k: (rows[0][k] if k == "canvas" else statistics.median(r[k] for r in rows)) for k in rows[0]}
@@ -225,6 +260,7 @@ def main() -> None:
     loads = [os.getloadavg()[0]]
     with sync_playwright() as p:
         link_rows = links(p, trees, take.parent, tmp, args.runs, args.play)
+        floor = floor_runs(p, "http://127.0.0.1:9", args.runs)  # routed by Playwright: nothing listens there
     loads.append(os.getloadavg()[0])
     medians = {tree: {row: median_row(runs) for row, runs in link_rows[tree].items()} for tree in trees}
     rows = dict(medians[ROOT])
@@ -262,6 +298,10 @@ def main() -> None:
           "process; pixels over the runs: " + "; ".join(
               f"{row} " + ", ".join(f"{r['first_pixels_s']:.3f}" for r in link_rows[ROOT][row])
               for row in ("url", "link")))
+    floor_median = median_row(floor)
+    print(f"floor (a fresh browser on a page that only opens a WebGL2 context, clears it and reads a pixel, "
+          f"median of {args.runs}): pixels {floor_median['pixels_s']:.3f} s, on screen "
+          f"{floor_median['on_screen_s']:.3f} s (runs: " + ", ".join(f"{r['pixels_s']:.3f}" for r in floor) + ")")
     if args.peer:
         peer = medians[trees[1]]
         print(f"peer {trees[1]} (alternated run by run with ours), medians, s, and ours / peer:")
@@ -280,7 +320,7 @@ def main() -> None:
     out.parent.mkdir(exist_ok=True)
     out.write_text(json.dumps({"frames": args.frames, "open": rows, "goal_first_frame_s": 1.0,
                                "load_average_1min": os.getloadavg()[0], "load_average_links": [min(loads), max(loads)],
-                               "runs": args.runs, "link_runs": {str(t): v for t, v in link_rows.items()},
+                               "runs": args.runs, "floor_runs": floor, "link_runs": {str(t): v for t, v in link_rows.items()},
                                "peer": None if not args.peer else {"tree": str(trees[1]), "medians": medians[trees[1]]},
                                "requests_warm": {k: {"server_ms": v[0], "bytes": v[1], "client_ms": v[2]}
                                                  for k, v in requests.items()},
