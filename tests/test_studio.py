@@ -77,6 +77,13 @@ def test_a_missing_take_gets_the_line_of_its_reader_and_nothing_outside_is_told(
         assert (status, body["error"]) == (404, f"usdmotion: error: {shown}: not found")
 
 
+@pytest.mark.parametrize("target, param", [("/api/skeleton", "take"), ("/api/positions?take=", "take"),
+                                           ("/api/compare?a=0/walk.bvh", "b")])
+def test_a_request_that_names_no_take_is_told_so(studio, target, param):
+    status, body = get_json(studio[0], target)
+    assert (status, body["error"]) == (400, f"the request names no take (?{param}=ID)")
+
+
 def test_scripts_are_revalidated_not_refetched(studio):
     """The page's scripts carry an ETag and ``no-cache``: a reload asks again and gets 304 (no body)."""
     import http.client

@@ -53,7 +53,10 @@ class StudioApi:
                 for name in ("takes", "meta", "skeleton", "positions", "com", "series", "glb", "compare")]
 
     def take(self, request: Request, param: str = "take") -> Entry:
-        return self.library.get(request.query_params.get(param, ""))
+        take_id = request.query_params.get(param, "")
+        if not take_id:  # not "usdmotion: error: : not found" (an empty file name)
+            raise StudioError(400, f"the request names no take (?{param}=ID)")
+        return self.library.get(take_id)
 
     def compute(self, entry: Entry, what: str, fn):
         try:
