@@ -84,6 +84,22 @@ def test_a_request_that_names_no_take_is_told_so(studio, target, param):
     assert (status, body["error"]) == (400, f"the request names no take (?{param}=ID)")
 
 
+def test_a_tool_request_that_names_no_take_is_told_so(tmp_path):
+    """The tool panels' JSON requests too (they look takes up through the same library)."""
+    import urllib.error
+    import urllib.request
+
+    lib = make_library(tmp_path)
+    with running_studio([lib], out=tmp_path / "out") as base:
+        for path, body in [("/api/edit/preview", {"ops": []}), ("/api/video", {"take": ""})]:
+            request = urllib.request.Request(base + path, data=json.dumps(body).encode(), method="POST",
+                                             headers={"Content-Type": "application/json"})
+            with pytest.raises(urllib.error.HTTPError) as answer:
+                urllib.request.urlopen(request, timeout=30)
+            assert answer.value.code == 400
+            assert json.loads(answer.value.read())["error"] == "the request names no take (take=ID)"
+
+
 def test_scripts_are_revalidated_not_refetched(studio):
     """The page's scripts carry an ETag and ``no-cache``: a reload asks again and gets 304 (no body)."""
     import http.client

@@ -53,10 +53,7 @@ class StudioApi:
                 for name in ("takes", "meta", "skeleton", "positions", "com", "series", "glb", "compare")]
 
     def take(self, request: Request, param: str = "take") -> Entry:
-        take_id = request.query_params.get(param, "")
-        if not take_id:  # not "usdmotion: error: : not found" (an empty file name)
-            raise StudioError(400, f"the request names no take (?{param}=ID)")
-        return self.library.get(take_id)
+        return self.library.get(request.query_params.get(param, ""), f"?{param}")
 
     def compute(self, entry: Entry, what: str, fn):
         try:

@@ -73,10 +73,13 @@ class Library:
         named = _split_id(take_id, len(self.roots))
         return None if named is None else self._entry(*named)
 
-    def get(self, take_id: str) -> Entry:
-        """The entry of ``take_id``; :class:`StudioError` 404 with :meth:`missing_line` if none."""
+    def get(self, take_id: str, field: str = "take") -> Entry:
+        """The entry of ``take_id``; :class:`StudioError` 404 with :meth:`missing_line` if none, 400 if
+        the request gave no id (in its ``field``: a query parameter ``?take``, a JSON body's ``take``)."""
         from usdmotion.studio.errors import StudioError
 
+        if not take_id:  # not "usdmotion: error: : not found" (an empty file name)
+            raise StudioError(400, f"the request names no take ({field}=ID)")
         entry = self.resolve(take_id)
         if entry is None:
             raise StudioError(404, self.missing_line(take_id))
