@@ -34,6 +34,10 @@ def test_analyze_csv_and_summary_of_the_giant_swing(tmp_path, capsys):
     assert data["joints"]["Legs"]["range_of_motion"]["z"] == {"min": -37.2, "max": 3.9, "range": 41.1}
     assert data["meta"]["units"]["speed"] == "m/s" and data["meta"]["filter"]["method"] == "none"
     assert data["com"] is None  # a 3-segment model has no de Leva landmarks
+    lines = summary.read_text().splitlines()  # readable: a key per line to the joints, then a joint per line
+    assert [line for line in lines if line.startswith('  "Legs_End": {')] == \
+        ['  "Legs_End": ' + json.dumps(data["joints"]["Legs_End"])]
+    assert ' "meta": {' in lines and '  "fps": 30.0,' in lines and len(lines) < 40
     printed = capsys.readouterr()
     assert "Legs_End" in printed.out and "no centre of mass" in printed.err
 
@@ -49,6 +53,9 @@ def test_analyze_cmu_walk_parquet_json_and_plot(shared_file, tmp_path, capsys):
     import pyarrow.parquet as pq
 
     table = pq.read_table(parquet)
+    encodings = {column.path_in_schema: column.encodings for column in
+                 (pq.ParquetFile(parquet).metadata.row_group(0).column(i) for i in range(table.num_columns))}
+    assert "RLE_DICTIONARY" in encodings["joint"] and "RLE_DICTIONARY" not in encodings["pos_y"]  # labels only
     meta = json.loads(table.schema.metadata[b"usdmotion"])
     assert meta["first_frame"] == 1 and meta["units"]["momentum"] == "kg m/s"
     frame = table.to_pandas()

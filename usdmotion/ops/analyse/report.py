@@ -264,8 +264,19 @@ def write_summary(data: dict, path: str | os.PathLike) -> Path:
     """Write a summary dict as JSON (atomically)."""
     path = Path(path)
     with atomic_output(path) as tmp:
-        tmp.write_text(json.dumps(data, indent=1, allow_nan=False, default=_json_default) + "\n", encoding="utf-8")
+        tmp.write_text(_json_text(data) + "\n", encoding="utf-8")
     return path
+
+
+def _json_text(value, depth: int = 2, margin: str = "") -> str:
+    """JSON of ``value`` with its first ``depth`` levels of objects one key per line and what
+    lies deeper on one line (a joint per line in a summary). Python's encoder indents in pure
+    Python (7.5 ms of a 160-frame take's 48 ms); the compact lines use its C encoder."""
+    if depth == 0 or not isinstance(value, dict) or not value:
+        return json.dumps(value, allow_nan=False, default=_json_default)
+    inner = margin + " "
+    items = (f"{inner}{json.dumps(str(key))}: {_json_text(item, depth - 1, inner)}" for key, item in value.items())
+    return "{\n" + ",\n".join(items) + f"\n{margin}}}"
 
 
 def _json_default(value):
@@ -294,10 +305,15 @@ def write_kinematics(kin: Kinematics, path: str | os.PathLike, joints: list[int]
 
             pcsv.write_csv(table, str(tmp))
         elif ext == ".parquet":
+            import pyarrow as pa
             import pyarrow.parquet as pq
 
             info = {"usdmotion": json.dumps(meta(kin, source), default=_json_default)}
-            pq.write_table(table.replace_schema_metadata(info), str(tmp))
+            # dictionary pages only for the label columns: Arrow's default tries a dictionary for
+            # every column, and on measured floats it only falls back after hashing them (a
+            # 160-frame take wrote in 12 ms that way, 4.6 ms so, and its file is 15 % smaller)
+            labels = [f.name for f in table.schema if pa.types.is_dictionary(f.type)]
+            pq.write_table(table.replace_schema_metadata(info), str(tmp), use_dictionary=labels)
         else:
             data = summary(kin, joints, source)
             data["table"] = {name: _json_column(column) for name, column in zip(table.column_names, table.columns)}
