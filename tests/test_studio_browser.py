@@ -285,18 +285,24 @@ def test_url_reopens_the_same_frame_and_camera(studio, browser, page):
 def test_a_linked_page_is_painted_with_its_takes_first_frame(studio, browser):
     """A fresh page on a take's link shows its view alone, and draws nothing in it, until the take's
     first frame is there: the page's first contentful paint is that frame; then the rest of the page
-    is shown, and the joints' spheres (left out of that frame: a costly shader program) follow."""
+    is shown, and the joints' spheres (left out of that frame: a costly shader program) follow. The
+    address stays as it came until then (a new address repaints the browser's own window, which a
+    software-rendered first frame waited for), and then holds the whole view."""
     base, _ = studio
     page = browser.new_page(viewport={"width": 1400, "height": 900})
     errors = []
     page.on("pageerror", lambda e: errors.append(str(e)))
     try:
         page.add_init_script("window.studioRevealMs = 120000")  # not the fallback's reveal on a slow machine
+        page.add_init_script("""window.addressChanges = []; const replace = history.replaceState.bind(history);
+            history.replaceState = (...args) => { window.addressChanges.push(performance.now()); replace(...args); };""")
         open_view(page, base, f"take={WALK_ID}&f=100")
         page.wait_for_function("performance.getEntriesByName('first-contentful-paint').length > 0")
-        painted, drawn = page.evaluate("[performance.getEntriesByName('first-contentful-paint')[0].startTime, "
-                                       "window.studio.player.firstDrawnAt]")
+        painted, drawn, changes = page.evaluate("[performance.getEntriesByName('first-contentful-paint')[0].startTime, "
+                                                "window.studio.player.firstDrawnAt, window.addressChanges]")
         assert painted >= drawn, (painted, drawn)
+        assert changes and min(changes) >= painted, (changes, painted)
+        assert "f=100" in page.url and "cam=side" in page.url, page.url
         page.wait_for_function("!document.documentElement.classList.contains('opening')")
         assert page.is_visible("#library") and page.is_visible("#transport") and frame_of(page) == 100
         page.wait_for_function("window.studio.player.figure.joints.visible")

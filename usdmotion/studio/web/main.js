@@ -32,7 +32,14 @@ function parseRange(text) {
   return m ? [+m[1], +m[2]] : null;
 }
 
+// A linked page keeps the address it came with until its take's first frame is on the screen (see
+// urlHeld below): in a software-rendered browser every new address repaints the browser's own window
+// (its address bar) on the GPU process's one thread, about 100 ms at 1800x1200, and the take's first
+// frame waited behind it (benchmarks/studio_url.py, traced)
+let urlHeld = !!state.take;
+
 function writeUrl() {
+  if (urlHeld) return;
   const p = new URLSearchParams();
   if (state.take) p.set('take', state.take);
   p.set('f', player.frame);
@@ -83,6 +90,7 @@ player.holdEmpty = !!state.take;  // and draws nothing before its take: the firs
 player.onStop = () => { $('play').textContent = '▶'; writeUrl(); };
 player.onOrbit = () => { player.cameraMode = 'orbit'; $('camera').value = 'orbit'; };
 player.onCamera = () => { clearTimeout(player.urlTimer); player.urlTimer = setTimeout(writeUrl, 300); };
+if (urlHeld) window.early.revealed.then(() => { urlHeld = false; writeUrl(); });
 performance.mark('player');
 const plots = new Plots($('plots'), t => player.setFrame(Math.round(t * player.fps)));
 const library = new LibraryView($('takes'), $('filter'), $('library-status'), id => openTake(id, true));
