@@ -18,11 +18,15 @@ process of the run: client + scheduler, nannies, workers), the scheduler overhea
 (no-op tasks) and the wall time not spent in takes, worker memory over the run (RSS sampled
 every 0.5 s), the cluster start-up, and the 1-minute load average before each run (the
 machine is shared: a loaded machine gives the batch fewer cores than it has workers).
+``--pairs N`` then runs the loop (in a fresh process) and ``dask-2`` N more times, one after the other, and prints
+each pair's wall-time ratio and their median: this machine's speed drifts by ±10-20 % from one
+minute to the next (a pure-Python loop timed alone three times ran 708-936 iterations a second),
+so one loop against one batch run minutes apart says little; pairs taken back to back do.
 Warnings (e.g. IMPLAUSIBLE UNITS of the cgspeed takes read in centimetres) are collected,
 as the batch collects them into its catalogue, and counted, not printed. Prints a table and
 writes ``benchmarks/results/batch.json``.
 
-    .venv/bin/python benchmarks/batch.py [--takes 500] [--frames 240] [--operations convert,analyze]
+    .venv/bin/python benchmarks/batch.py [--takes 500] [--frames 240] [--operations convert,analyze] [--pairs 3]
 """
 
 from __future__ import annotations
@@ -117,11 +121,16 @@ ONE_THREAD = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THRE
 
 def sequential_one_thread(library: Path, out: Path, operation: str) -> dict:
     """:func:`sequential` in a fresh subprocess with :data:`ONE_THREAD`."""
-    code = ("import json, sys; sys.path.insert(0, sys.argv[1]); import batch; "
-            "print(json.dumps(batch.sequential(batch.Path(sys.argv[2]), batch.Path(sys.argv[3]), sys.argv[4])))")
     from usdmotion.batch.engine import WORKER_ENV
 
-    env = {**os.environ, **ONE_THREAD, **WORKER_ENV}
+    return sequential_subprocess(library, out, operation, {**ONE_THREAD, **WORKER_ENV})
+
+
+def sequential_subprocess(library: Path, out: Path, operation: str, env_extra: dict | None = None) -> dict:
+    """:func:`sequential` in a fresh subprocess (this process's environment plus ``env_extra``)."""
+    code = ("import json, sys; sys.path.insert(0, sys.argv[1]); import batch; "
+            "print(json.dumps(batch.sequential(batch.Path(sys.argv[2]), batch.Path(sys.argv[3]), sys.argv[4])))")
+    env = {**os.environ, **(env_extra or {})}
     env.pop("MALLOC_TRIM_THRESHOLD_", None)  # a LocalCluster started earlier in this process leaks Dask's setting
     done = subprocess.run([sys.executable, "-c", code, str(Path(__file__).parent), str(library), str(out), operation],
                           env=env, capture_output=True, text=True, check=True)
@@ -235,6 +244,21 @@ def run_operation(library: Path, work: Path, operation: str, takes: int, frames:
     return runs
 
 
+def alternated_pairs(library: Path, work: Path, operation: str, pairs: int) -> list[dict]:
+    """``pairs`` rounds of the loop (in a fresh process, the library's defaults) then ``dask-2``, back
+    to back: each round's wall times and ratio."""
+    rounds = []
+    for i in range(pairs):
+        loop = sequential_subprocess(library, work / f"pair{i}-seq-{operation}", operation)["wall_s"]
+        batch = batch_run(library, work / f"pair{i}-dask-2" / operation, operation, 2)["wall_s"]
+        rounds.append({"loop_s": loop, "dask2_s": batch, "ratio": loop / batch, "load": os.getloadavg()[0]})
+        for done in (work / f"pair{i}-seq-{operation}", work / f"pair{i}-dask-2"):
+            shutil.rmtree(done, ignore_errors=True)  # an analyze round writes ~0.6 GB
+        print(f"  {operation} pair {i + 1}: loop {loop:.1f} s, dask-2 {batch:.1f} s, {loop / batch:.2f}x "
+              f"(load {rounds[-1]['load']:.1f})", flush=True)
+    return rounds
+
+
 def cpu_bound_ratio(runs: dict, name: str) -> float:
     """The wall-time ratio to the loop the run would give if every process had a core of its
     own (a quiet machine): the loop's main-thread CPU (its wall time there; its helper threads
@@ -306,6 +330,8 @@ def main() -> None:
     parser.add_argument("--takes", type=int, default=500)
     parser.add_argument("--frames", type=int, default=240, help="frames per take (shorter sources whole)")
     parser.add_argument("--operations", default="convert,analyze")
+    parser.add_argument("--pairs", type=int, default=0,
+                        help="then N rounds of the loop and dask-2 back to back: the median of their ratios")
     args = parser.parse_args()
     work = Path(tempfile.mkdtemp(prefix="usdmotion-batch-bench-"))
     try:
@@ -322,8 +348,15 @@ def main() -> None:
                     "no-op ms/task", "worker RSS MiB first→last", "load avg"], table)
         costs = per_take_costs(results)
         paper = on_paper(results)
+        pairs = {}
+        for operation in args.operations.split(",") if args.pairs else ():
+            pairs[operation] = alternated_pairs(library, work, operation, args.pairs)
+            ratios = [r["ratio"] for r in pairs[operation]]
+            print(f"  {operation}: dask-2 against the loop, {args.pairs} alternated pairs: median "
+                  f"{statistics.median(ratios):.2f}x (" + ", ".join(f"{r:.2f}" for r in ratios) + ")")
         path = write_results("batch", {"takes": takes, "frames": frames, "frames_per_take": args.frames,
-                                       "results": results, "per_take_costs": costs, "on_paper_takes_per_s": paper})
+                                       "results": results, "per_take_costs": costs, "on_paper_takes_per_s": paper,
+                                       "alternated_pairs": pairs})
         print(f"wrote {path}")
     finally:
         shutil.rmtree(work, ignore_errors=True)
