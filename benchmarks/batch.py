@@ -18,7 +18,7 @@ process of the run: client + scheduler, nannies, workers), the scheduler overhea
 (no-op tasks) and the wall time not spent in takes, worker memory over the run (RSS sampled
 every 0.5 s), the cluster start-up, and the 1-minute load average before each run (the
 machine is shared: a loaded machine gives the batch fewer cores than it has workers).
-``--pairs N`` then runs the loop (in a fresh process) and ``dask-2`` N more times, one after the other, and prints
+``--pairs N`` then runs the loop and ``dask-2`` N more times, back to back (in turn first), and prints
 each pair's wall-time ratio and their median: this machine's speed drifts by ±10-20 % from one
 minute to the next (a pure-Python loop timed alone three times ran 708-936 iterations a second),
 so one loop against one batch run minutes apart says little; pairs taken back to back do.
@@ -245,12 +245,18 @@ def run_operation(library: Path, work: Path, operation: str, takes: int, frames:
 
 
 def alternated_pairs(library: Path, work: Path, operation: str, pairs: int) -> list[dict]:
-    """``pairs`` rounds of the loop (in a fresh process, the library's defaults) then ``dask-2``, back
-    to back: each round's wall times and ratio."""
+    """``pairs`` rounds of the loop (in this process, as the table's) and ``dask-2`` back to back, the
+    loop first in even rounds and second in odd ones (a drift of the machine's speed within a round
+    then counts for the batch as often as against it): each round's wall times and ratio."""
     rounds = []
     for i in range(pairs):
-        loop = sequential_subprocess(library, work / f"pair{i}-seq-{operation}", operation)["wall_s"]
-        batch = batch_run(library, work / f"pair{i}-dask-2" / operation, operation, 2)["wall_s"]
+        loop_out, batch_out = work / f"pair{i}-seq-{operation}", work / f"pair{i}-dask-2" / operation
+        if i % 2:  # the batch first
+            batch = batch_run(library, batch_out, operation, 2)["wall_s"]
+            loop = sequential(library, loop_out, operation)["wall_s"]
+        else:
+            loop = sequential(library, loop_out, operation)["wall_s"]
+            batch = batch_run(library, batch_out, operation, 2)["wall_s"]
         rounds.append({"loop_s": loop, "dask2_s": batch, "ratio": loop / batch, "load": os.getloadavg()[0]})
         for done in (work / f"pair{i}-seq-{operation}", work / f"pair{i}-dask-2"):
             shutil.rmtree(done, ignore_errors=True)  # an analyze round writes ~0.6 GB
