@@ -258,7 +258,7 @@ def alternated_pairs(library: Path, work: Path, operation: str, pairs: int) -> l
             loop = sequential(library, loop_out, operation)["wall_s"]
             batch = batch_run(library, batch_out, operation, 2)["wall_s"]
         rounds.append({"loop_s": loop, "dask2_s": batch, "ratio": loop / batch, "load": os.getloadavg()[0]})
-        for done in (work / f"pair{i}-seq-{operation}", work / f"pair{i}-dask-2"):
+        for done in (loop_out, batch_out.parent):
             shutil.rmtree(done, ignore_errors=True)  # an analyze round writes ~0.6 GB
         print(f"  {operation} pair {i + 1}: loop {loop:.1f} s, dask-2 {batch:.1f} s, {loop / batch:.2f}x "
               f"(load {rounds[-1]['load']:.1f})", flush=True)
