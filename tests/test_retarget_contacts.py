@@ -210,6 +210,24 @@ def test_the_lm_contact_phase_wins_back_rms(long_legs, monkeypatch):
     assert with_phase["feet"]["skate_mean_cm_s"] <= without["feet"]["skate_mean_cm_s"] + 0.01
 
 
+def test_the_upper_body_turns_back_towards_the_source_in_the_contact_phase(long_legs, monkeypatch):
+    """The contact phase also turns the spine, neck and arms (held near their world rotations):
+    the body above the tilted hips matches the source better than with them held, with no
+    rotation step above its no-flip limit."""
+    from usdmotion.ops.retarget import contact_phase
+
+    source, contacts, result = long_legs
+    from usdmotion.ops.retarget.pipeline import retarget
+
+    monkeypatch.setattr(contact_phase, "UPPER_BODY_PRIOR", None)  # the upper body keeps the plain solve's
+
+    kept = retarget(source, scaled_legs(source, 1.2), contacts=contacts, lengths="target", root_scale="legs")
+    turned, still = result.report["quality"], kept.report["quality"]
+    assert turned["rms_cm"] < still["rms_cm"] - 0.01, (turned["rms_cm"], still["rms_cm"])
+    assert not turned["flips"], turned["flips"]
+    assert turned["feet"]["skate_mean_cm_s"] <= 1.0
+
+
 def test_the_temporal_term_runs_with_contacts(long_legs):
     """``smooth=`` with contacts: the LM contact phase turns a subset of the joints, and the
     temporal term's per-joint weights must be cut to the same subset (they were not: a shape

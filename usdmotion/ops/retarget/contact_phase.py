@@ -18,6 +18,7 @@ from usdmotion.ops.retarget.contact_terms import leg_joints
 from usdmotion.ops.retarget.hierarchy import ancestor_matrix
 from usdmotion.ops.retarget.leg_ik import nearness
 from usdmotion.ops.retarget.problem import Problem
+from usdmotion.ops.retarget.rotation_terms import smooth_scale
 from usdmotion.ops.retarget.solve import solve
 
 #: Iterations of the LM contact phase of the contact solve (0: off), warm-started from the
@@ -29,6 +30,15 @@ CONTACT_WEIGHT = 100.0
 #: Seconds over which that weight fades out around each contact (the held points there are
 #: the IK's blends into the swing).
 CONTACT_FADE_S = 0.2
+#: Pull of each upper-body joint (spine, neck, head, arms) towards its world rotation after
+#: the leg IK, per radian² in units of the positions it moves (``smooth_scale``): they turn
+#: in the contact phase too, so the upper body keeps the source's pose while the hips tilt
+#: under it. Without the pull (or at 0.1) Rokoko's head stepped 20-99°/frame; at 0.3 no joint
+#: steps above its no-flip limit on the benchmark's six pairs, and the contact solve's RMS to
+#: the source fell on all six (86_01 -> Rokoko 4.46 -> 4.33 cm, walk -> DAZ 6.19 -> 6.01 cm,
+#: the leg-scaled walks 1.11 / 1.02 -> 0.98 / 1.00 cm), for up to ~20 % of its speed. None:
+#: the upper body keeps the plain solve's local rotations (as until 2026-11-28).
+UPPER_BODY_PRIOR: float | None = 0.3
 
 
 def contact_phase(setup, terms, legs, q: np.ndarray, t: np.ndarray, problem: Problem, iterations: int):
@@ -36,17 +46,27 @@ def contact_phase(setup, terms, legs, q: np.ndarray, t: np.ndarray, problem: Pro
     leg IK's result ``q, t`` (anchor world-placed) for ``iterations`` iterations, every contact joint held where the IK put
     it on its contact frames (weight :data:`CONTACT_WEIGHT`, fading out around them): the
     root, the hips and the ``legs`` (:class:`~usdmotion.ops.retarget.leg_ik.Leg`) re-fit
-    the source given the planted feet (what the root's drop and the IK's knees cost)."""
+    the source given the planted feet (what the root's drop and the IK's knees cost), and the
+    upper body turns back towards its pose, held near its world rotations (:data:`UPPER_BODY_PRIOR`)."""
     mapped, anchor = setup.mapped, setup.anchor
     base = problem
-    # only the hips (and what carries them) and each leg's hip, knee and ankle turn: the rest of
-    # the body, the toes and joints between the hips and a leg keep the plain solve's rotations
-    turn = (ancestor_matrix(setup.rig.parents) | np.eye(setup.rig.n_joints, dtype=bool))[:, setup.top]
+    # the hips (and what carries them) and each leg's hip, knee and ankle turn freely, the upper body
+    # against a pull; the toes and joints between the hips and a leg keep the plain solve's rotations
+    ancestor = ancestor_matrix(setup.rig.parents)  # [i, j]: i is an ancestor of j
+    turn = (ancestor | np.eye(setup.rig.n_joints, dtype=bool))[:, setup.top]
     turn[[j for leg in legs for j in (leg.hip, leg.knee, leg.ankle)]] = True
-    keep = turn[base.rot_joints]
+    fixed = np.zeros(setup.rig.n_joints, bool)
+    for leg in legs:
+        fixed |= ancestor[leg.ankle] | (ancestor[:, leg.hip] & ancestor[setup.top])
+    upper = ~(turn | fixed)[base.rot_joints]
+    pulled = len(base.prior) and UPPER_BODY_PRIOR is not None  # a pull needs the prior term
+    keep = turn[base.rot_joints] | (upper if pulled else False)
+    prior = base.prior.copy()
+    if pulled:
+        prior[upper] = UPPER_BODY_PRIOR * smooth_scale(setup)[upper]
     problem = dataclasses.replace(base, rot_joints=base.rot_joints[keep], contact_joints=terms.joints, up=terms.up,
                                   orders=tuple(o for o, k in zip(base.orders, keep) if k),
-                                  prior=base.prior[keep] if len(base.prior) else base.prior,
+                                  prior=prior[keep] if len(prior) else prior,
                                   smooth=base.smooth[keep] if len(base.smooth) else base.smooth)
     centre = setup.translations[:, anchor]
     t0 = t.copy()
