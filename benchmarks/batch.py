@@ -121,16 +121,11 @@ ONE_THREAD = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THRE
 
 def sequential_one_thread(library: Path, out: Path, operation: str) -> dict:
     """:func:`sequential` in a fresh subprocess with :data:`ONE_THREAD`."""
-    from usdmotion.batch.engine import WORKER_ENV
-
-    return sequential_subprocess(library, out, operation, {**ONE_THREAD, **WORKER_ENV})
-
-
-def sequential_subprocess(library: Path, out: Path, operation: str, env_extra: dict | None = None) -> dict:
-    """:func:`sequential` in a fresh subprocess (this process's environment plus ``env_extra``)."""
     code = ("import json, sys; sys.path.insert(0, sys.argv[1]); import batch; "
             "print(json.dumps(batch.sequential(batch.Path(sys.argv[2]), batch.Path(sys.argv[3]), sys.argv[4])))")
-    env = {**os.environ, **(env_extra or {})}
+    from usdmotion.batch.engine import WORKER_ENV
+
+    env = {**os.environ, **ONE_THREAD, **WORKER_ENV}
     env.pop("MALLOC_TRIM_THRESHOLD_", None)  # a LocalCluster started earlier in this process leaks Dask's setting
     done = subprocess.run([sys.executable, "-c", code, str(Path(__file__).parent), str(library), str(out), operation],
                           env=env, capture_output=True, text=True, check=True)
