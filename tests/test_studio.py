@@ -119,6 +119,21 @@ def test_scripts_are_revalidated_not_refetched(studio):
         conn.close()
 
 
+def test_the_render_hold_answers_empty_css_after_its_time_and_never_much_later(studio, monkeypatch):
+    """``/api/hold`` (a linked page's render-blocking stylesheet, removed by the page once its take's
+    first frame is drawn) answers empty CSS after ``ms``, at most MAX_HOLD_MS; nonsense is no wait."""
+    import time
+
+    from usdmotion.studio.app import MAX_HOLD_MS, hold_seconds
+
+    for ms, low, high in (("300", 0.3, 2.0), ("soon", 0.0, 1.0)):
+        t = time.perf_counter()
+        status, body = raw_get(studio[0], f"/api/hold?ms={ms}")
+        assert (status, body) == (200, b"") and low <= time.perf_counter() - t < high, (ms, time.perf_counter() - t)
+    assert [hold_seconds(ms) for ms in ("250", "-5", "1e9", "nan", "inf", "")] == [
+        0.25, 0.0, MAX_HOLD_MS / 1000, 0.0, MAX_HOLD_MS / 1000, 0.0]
+
+
 def test_requests_are_read_only_and_bounded(studio):
     import http.client
     from urllib.parse import urlsplit

@@ -287,7 +287,9 @@ def test_a_linked_page_is_painted_with_its_takes_first_frame(studio, browser):
     first frame is there: the page's first contentful paint is that frame; then the rest of the page
     is shown, and the joints' spheres (left out of that frame: a costly shader program) follow. The
     address stays as it came until then (a new address repaints the browser's own window, which a
-    software-rendered first frame waited for), and then holds the whole view."""
+    software-rendered first frame waited for), and then holds the whole view. Nothing of the page is
+    rendered before that frame either (its render-blocking hold: the browser's first rendering update,
+    where animation frames run, comes after the frame was drawn)."""
     base, _ = studio
     page = browser.new_page(viewport={"width": 1400, "height": 900})
     errors = []
@@ -296,11 +298,14 @@ def test_a_linked_page_is_painted_with_its_takes_first_frame(studio, browser):
         page.add_init_script("window.studioRevealMs = 120000")  # not the fallback's reveal on a slow machine
         page.add_init_script("""window.addressChanges = []; const replace = history.replaceState.bind(history);
             history.replaceState = (...args) => { window.addressChanges.push(performance.now()); replace(...args); };""")
+        page.add_init_script("requestAnimationFrame(() => { window.firstRendering = performance.now(); })")
         open_view(page, base, f"take={WALK_ID}&f=100")
         page.wait_for_function("performance.getEntriesByName('first-contentful-paint').length > 0")
-        painted, drawn, changes = page.evaluate("[performance.getEntriesByName('first-contentful-paint')[0].startTime, "
-                                                "window.studio.player.firstDrawnAt, window.addressChanges]")
+        painted, drawn, changes, rendering = page.evaluate(
+            "[performance.getEntriesByName('first-contentful-paint')[0].startTime, "
+            "window.studio.player.firstDrawnAt, window.addressChanges, window.firstRendering]")
         assert painted >= drawn, (painted, drawn)
+        assert rendering >= drawn, (rendering, drawn)
         assert changes and min(changes) >= painted, (changes, painted)
         assert "f=100" in page.url and "cam=side" in page.url, page.url
         page.wait_for_function("!document.documentElement.classList.contains('opening')")

@@ -7,6 +7,8 @@ thread pool (sync endpoints); a take that fails answers 422 with its one-line er
 
 from __future__ import annotations
 
+import asyncio
+import math
 import stat
 import threading
 import time
@@ -34,6 +36,8 @@ MAX_IDS = 200
 #: Host names always accepted (besides IP addresses): a page of another site that a DNS rebinding
 #: points at this machine sends its own name in the ``Host`` header, and is refused.
 LOCAL_HOSTS = ("localhost",)
+#: Longest a linked page's render-blocking stylesheet is held (``/api/hold``), ms.
+MAX_HOLD_MS = 10_000.0
 
 
 def missing_web_packages() -> list[str]:
@@ -147,6 +151,15 @@ def _compare_params(request: Request, n_frames: int) -> tuple[str, float, int]:
     return mode, offset, min(max(frame, 0), n_frames - 1)
 
 
+def hold_seconds(ms: str) -> float:
+    """Seconds ``/api/hold?ms=`` waits: ``ms`` / 1000 within 0 and MAX_HOLD_MS (0 for what is not a number)."""
+    try:
+        value = float(ms)
+    except ValueError:
+        return 0.0
+    return 0.0 if math.isnan(value) else min(max(value, 0.0), MAX_HOLD_MS) / 1000
+
+
 def create_app(roots: list[Path], options: dict | None = None, out: Path | None = None,
                hosts: Sequence[str] = ()) -> Starlette:
     """The studio over ``roots``, reading with ``options`` (:func:`usdmotion.io.read_motion`
@@ -171,7 +184,13 @@ def create_app(roots: list[Path], options: dict | None = None, out: Path | None 
                         headers={"Cache-Control": "no-cache"},
                         background=BackgroundTask(api.prefetch, request.query_params.get("take")))
 
-    routes = [Route("/", index), *api.routes(), *jobs.routes(api.jobs), *edit_panel.routes(api),
+    async def hold(request: Request) -> Response:
+        # a linked page's render-blocking stylesheet (index.html): answered empty after ?ms (at most
+        # MAX_HOLD_MS), unless the page removed it first, once its take's first frame was drawn
+        await asyncio.sleep(hold_seconds(request.query_params.get("ms", "0")))
+        return Response("", media_type="text/css", headers={"Cache-Control": "no-store"})
+
+    routes = [Route("/", index), Route("/api/hold", hold), *api.routes(), *jobs.routes(api.jobs), *edit_panel.routes(api),
               *retarget_panel.routes(api), *video_panel.routes(api), *segment_panel.routes(api),
               Mount("/app", _Static(directory=WEB, check_dir=False), name="app"),
               Mount("/vendor/three", _Static(directory=NODE_MODULES / "three", check_dir=False), name="three"),

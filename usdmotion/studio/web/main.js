@@ -78,6 +78,7 @@ const player = new Player(frame => {
 // canvas is the only content, so the first contentful paint is that frame's
 player.onFirstFrame = () => {
   player.onFirstFrame = null;
+  window.early.release();  // the page is rendered from now on, this frame first
   new PerformanceObserver((list, observer) => {
     if (list.getEntriesByName('first-contentful-paint').length) { observer.disconnect(); window.early.reveal(); }
   }).observe({type: 'paint', buffered: true});
