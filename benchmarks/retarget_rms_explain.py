@@ -54,7 +54,7 @@ def contact_setup(source, target, options, path, target_path):
 def explain_pair(label, source_spec, target_spec, target_kw) -> dict:
     from usdmotion.kinematics import fk_arrays
     from usdmotion.ops.retarget import pipeline
-    from usdmotion.ops.retarget.contact_terms import leg_joints
+    from usdmotion.ops.retarget.contact_terms import leg_joints, solved_ankle_levels
     from usdmotion.ops.retarget.hierarchy import ancestor_matrix
     from usdmotion.ops.retarget.leg_ik import legs_of, place_legs
     from usdmotion.rotations import quat_conjugate, quat_rotate
@@ -62,7 +62,8 @@ def explain_pair(label, source_spec, target_spec, target_kw) -> dict:
     source, target, path, target_path, options = load_pair(source_spec, target_spec, target_kw)
     setup, terms, q0, rot_terms = contact_setup(source, target, options, path, target_path)
     parents, mapped = setup.rig.parents, setup.mapped
-    q_p, t_p, _ = pipeline._solve(setup, q0, None, rot_terms, "lm", None, None, terms.floor)
+    q_p, t_p, _, _ = pipeline._solve(setup, q0, None, rot_terms, "lm", None, None, terms.floor)
+    terms = solved_ankle_levels(setup, terms, fk_arrays(q_p, t_p, parents)[1])  # as the contact solve does
     legs = legs_of(parents, terms.joints, terms.target_contacts.parts, setup.offsets, setup.top)
     contact = terms.target_contacts.contact
     q_c, t_c, drop = place_legs(q_p, t_p, parents, setup.anchor, legs, terms.planted, contact, terms.level, terms.up,

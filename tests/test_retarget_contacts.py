@@ -211,18 +211,19 @@ def test_the_lm_contact_phase_wins_back_rms(long_legs, monkeypatch):
 
 
 def test_the_upper_body_turns_back_towards_the_source_in_the_contact_phase(long_legs, monkeypatch):
-    """The contact phase also turns the spine, neck and arms (held near their world rotations):
-    the body above the tilted hips matches the source better than with them held, with no
-    rotation step above its no-flip limit."""
+    """With ``UPPER_BODY_PRIOR`` set (off by default) the contact phase also turns the spine,
+    neck and arms (held near their world rotations): the body above the tilted hips matches the
+    source better than with the plain solve's rotations, with no rotation step above its no-flip
+    limit here."""
     from usdmotion.ops.retarget import contact_phase
 
     source, contacts, result = long_legs
     from usdmotion.ops.retarget.pipeline import retarget
 
-    monkeypatch.setattr(contact_phase, "UPPER_BODY_PRIOR", None)  # the upper body keeps the plain solve's
-
-    kept = retarget(source, scaled_legs(source, 1.2), contacts=contacts, lengths="target", root_scale="legs")
-    turned, still = result.report["quality"], kept.report["quality"]
+    assert contact_phase.UPPER_BODY_PRIOR is None  # the default: the upper body keeps the plain solve's
+    monkeypatch.setattr(contact_phase, "UPPER_BODY_PRIOR", 0.3)
+    pulled = retarget(source, scaled_legs(source, 1.2), contacts=contacts, lengths="target", root_scale="legs")
+    turned, still = pulled.report["quality"], result.report["quality"]
     assert turned["rms_cm"] < still["rms_cm"] - 0.01, (turned["rms_cm"], still["rms_cm"])
     assert not turned["flips"], turned["flips"]
     assert turned["feet"]["skate_mean_cm_s"] <= 1.0
@@ -417,6 +418,70 @@ def test_leg_ik_puts_ankle_and_toe_on_their_points_and_keeps_the_bones():
         along = p[:, 3] - p[:, 1]
         return np.cross(along, p[:, 2] - p[:, 1])
     assert np.all(np.sum(bend(after) * bend(world_p), axis=-1) > 0)
+
+
+def test_a_toe_only_contact_turns_the_foot_about_the_toe_never_the_heel_below_its_level():
+    """Where the solve's foot, pivoted about its planted toe, would put the ankle below the
+    ankle's planted level (the heel through the floor), the foot turns up about the toe onto
+    that level: the toe stays exactly on its point (lifted straight up, the foot missed it)."""
+    from usdmotion.ops.retarget.leg_ik import legs_of, place_legs
+
+    parents = np.array([-1, 0, 1, 2, 3, 0])  # hips, thigh, knee, ankle, toe; spine
+    offsets = np.array([[0, 0, 0], [10, -5, 0], [0, -40, 0], [0, -40, 0], [0, -6, 12], [0, 30, 0.0]])
+    n = 20
+    q = np.zeros((n, 6, 4))
+    q[..., 0] = 1.0
+    q[:, 2] = axis_angle_quat("X", np.radians(np.linspace(20, 35, n)))  # a bent knee
+    q[:, 3] = axis_angle_quat("X", np.radians(-50.0))  # the foot pitched toe up
+    t = np.broadcast_to(offsets, (n, 6, 3)).copy()
+    t[:, 0] = (0, 82, 0)
+    world_p = fk_arrays(q, t, parents)[1]
+    toe = world_p[:, 4].mean(axis=0) + (1.0, 0, 0)
+    toe[1] = 3.0
+    planted = np.broadcast_to(np.stack([world_p[:, 3].mean(axis=0), toe]), (n, 2, 3)).copy()
+    contact = np.zeros((n, 2), bool)
+    contact[:, 1] = True  # the toe alone is down, on every frame
+    level = np.array([9.0, 3.0])
+    assert (toe + world_p[:, 3] - world_p[:, 4])[:, 1].max() < level[0] - 1.0  # the solve's foot: heel below
+    legs = legs_of(parents, np.array([3, 4]), ("left_ankle", "left_toe"), offsets, 0)
+    q2, t2, _ = place_legs(q, t, parents, 0, legs, planted, contact, level, 1, 120.0, 0.0)
+    after = fk_arrays(q2, t2, parents)[1]
+    np.testing.assert_allclose(after[:, 4], planted[:, 1], atol=1e-9)
+    assert after[:, 3, 1].min() >= level[0] - 1e-9
+    np.testing.assert_allclose(np.linalg.norm(after[:, 4] - after[:, 3], axis=-1), np.linalg.norm(offsets[4]))
+
+
+def test_an_ankle_is_planted_where_the_plain_solve_stands_it_over_its_toe():
+    """The ankle's planted level is the plain solve's median height over its contact frames
+    (how high an ankle stands over its toe is the target foot's), the toe's stays the source's,
+    and the toe's fixed point is a foot's length from the ankle's again."""
+    from types import SimpleNamespace
+
+    from usdmotion.ops.contacts.detect import FootContacts
+    from usdmotion.ops.retarget.contact_terms import ContactTerms, solved_ankle_levels
+
+    parents = np.array([-1, 0, 1])  # hips, ankle, toe
+    offsets = np.array([[0, 0, 0], [0, -80, 0], [0, -6, 12.0]])
+    n = 30
+    contact = np.zeros((n, 2), bool)
+    contact[5:20] = True
+    planted = np.zeros((n, 2, 3))
+    planted[5:20] = [[0, 7.0, 0], [0, 3.0, 12.0]]
+    found = FootContacts(("ankle", "toe"), np.array([1, 2]), ("left_ankle", "left_toe"), contact, 0.0,
+                         np.array([0.07, 0.03]), "Y", 120.0)
+    terms = ContactTerms(np.array([1, 2]), planted, np.array([7.0, 3.0]), 0.0, 1, 1.0, np.zeros((n, 3, 3)),
+                         np.zeros((n, 3)), found, ())
+    setup = SimpleNamespace(rig=SimpleNamespace(parents=parents, meters_per_unit=0.01, n_joints=3), offsets=offsets)
+    world = np.zeros((n, 3, 3))
+    world[:, 1, 1] = np.linspace(8.0, 10.0, n)  # the plain solve's ankle: median 9 over frames 5-19
+    out = solved_ankle_levels(setup, terms, world)
+    median = np.median(world[5:20, 1, 1])
+    np.testing.assert_allclose(out.level, [median, 3.0])
+    np.testing.assert_allclose(out.planted[5:20, :, 1], np.broadcast_to([median, 3.0], (15, 2)))
+    np.testing.assert_allclose(np.linalg.norm(out.planted[5:20, 1] - out.planted[5:20, 0], axis=-1),
+                               np.linalg.norm(offsets[2]))
+    np.testing.assert_allclose(out.target_contacts.clearance, [median * 0.01, 0.03])
+    np.testing.assert_array_equal(out.planted[:5], terms.planted[:5])  # off contact: as it was
 
 
 def test_root_drop_covers_the_need_and_never_steps():

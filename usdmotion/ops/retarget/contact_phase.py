@@ -36,9 +36,12 @@ CONTACT_FADE_S = 0.2
 #: under it. Without the pull (or at 0.1) Rokoko's head stepped 20-99°/frame; at 0.3 no joint
 #: steps above its no-flip limit on the benchmark's six pairs, and the contact solve's RMS to
 #: the source fell on all six (86_01 -> Rokoko 4.46 -> 4.33 cm, walk -> DAZ 6.19 -> 6.01 cm,
-#: the leg-scaled walks 1.11 / 1.02 -> 0.98 / 1.00 cm), for up to ~20 % of its speed. None:
-#: the upper body keeps the plain solve's local rotations (as until 2026-11-28).
-UPPER_BODY_PRIOR: float | None = 0.3
+#: the leg-scaled walks 1.11 / 1.02 -> 0.98 / 1.00 cm), for up to ~20 % of its speed. Off (None:
+#: the upper body keeps the plain solve's local rotations) since the ankles are planted where
+#: the plain solve stands them (``contact_terms.solved_ankle_levels``): the hips then move less,
+#: the pull gained 0.04-0.18 cm and stepped jumps -> Mixamo's head over its no-flip limit
+#: (9.6 / 9.3°/frame; 9.2 in the plain solve), at any pull from 0.3 to 1.0.
+UPPER_BODY_PRIOR: float | None = None
 
 
 def contact_phase(setup, terms, legs, q: np.ndarray, t: np.ndarray, problem: Problem, iterations: int):

@@ -18,10 +18,12 @@ to arrays in the target's frame and units (the solver's, before centring):
 * during every contact interval the target contact joint is pulled to one fixed point:
   horizontally the mean of the source joint's position over the interval (scaled about
   the same ground point when the root is), vertically its planted level
-  ``floor + k · clearance`` (the target's ankle sits ``k`` times as high as the source's;
-  never below :data:`ABOVE_FLOOR_M`), the clearance being the source joint's median
-  height over its contact frames (:func:`stance_clearance`); a toe's fixed point is then moved to a foot's
-  length from its ankle's (:func:`foot_length_apart`);
+  ``floor + k · clearance`` (never below :data:`ABOVE_FLOOR_M`), the clearance being the
+  source joint's median height over its contact frames (:func:`stance_clearance`); a toe's
+  fixed point is then moved to a foot's length from its ankle's (:func:`foot_length_apart`);
+  once the plain solve is there, an ankle's level becomes its median stance height in that
+  solve (:func:`solved_ankle_levels`: how high an ankle stands over its toe is the target
+  foot's), its toe's fixed point moved again;
 * the legs then meet these points analytically (:mod:`usdmotion.ops.retarget.leg_ik`).
 """
 
@@ -164,6 +166,36 @@ def stance_clearance(heights: np.ndarray, contact: np.ndarray) -> np.ndarray:
     (``heights (F, C)``, ``contact (F, C)``; 0 for a joint without contacts)."""
     return np.array([np.median(heights[contact[:, c], c]) if contact[:, c].any() else 0.0
                      for c in range(heights.shape[1])])
+
+
+def solved_ankle_levels(setup, terms: ContactTerms, world: np.ndarray) -> ContactTerms:
+    """``terms`` with every ankle's planted level (a contact joint with another contact joint
+    below it: its toe) at its median height over its contact frames in ``world`` ``(F, J, 3)``,
+    the plain solve's joint positions (never below the floor's :data:`ABOVE_FLOOR_M`), and
+    its toes' fixed points moved to a foot's length from it again (:func:`foot_length_apart`).
+
+    How high an ankle stands over a planted toe is a property of the target's foot (its
+    bones and their rest directions), not of the source's: ``k`` times the source's stance
+    height put Mixamo's ankles 1.1 cm below where the plain solve stands them, and the legs
+    bent their knees by that much."""
+    anc = ancestor_matrix(setup.rig.parents)
+    contact = np.asarray(terms.target_contacts.contact, bool)
+    ankles = [c for c, j in enumerate(terms.joints) if anc[j, terms.joints].any()]
+    if not ankles:
+        return terms
+    level = terms.level.copy()
+    heights = world[:, terms.joints, terms.up]
+    floor_min = terms.floor + ABOVE_FLOOR_M / setup.rig.meters_per_unit
+    solved = stance_clearance(heights, contact)
+    for c in ankles:
+        if contact[:, c].any():
+            level[c] = max(solved[c], floor_min)
+    planted = terms.planted.copy()
+    planted[..., terms.up] = np.where(contact, level[None], planted[..., terms.up])
+    planted = foot_length_apart(setup, terms.joints, contact, planted, terms.up)
+    restated = replace(terms.target_contacts,
+                       clearance=(level - terms.floor) * setup.rig.meters_per_unit)
+    return replace(terms, planted=planted, level=level, target_contacts=restated)
 
 
 def foot_length_apart(setup, joints: np.ndarray, contact: np.ndarray, planted: np.ndarray, up: int) -> np.ndarray:

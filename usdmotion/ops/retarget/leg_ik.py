@@ -158,6 +158,7 @@ def foot_targets(world_p: np.ndarray, leg: Leg, planted: np.ndarray, contact: np
         pivot = _unit(foot + _interp_rows(frames, known, correction)) * np.linalg.norm(foot, axis=-1, keepdims=True)
         only_toe = on_t & ~on_a
         pivoted = _turn_to_reach(planted[:, leg.toe_c] + pivot, planted[:, leg.toe_c], hip, limit)
+        pivoted = _up_to_level(pivoted, planted[:, leg.toe_c], level[leg.ankle_c], up)
         desired = np.where(only_toe[:, None], pivoted, desired)
         held |= only_toe
         toe_target = _follow(frames, toe, np.where(on_t[:, None], planted[:, leg.toe_c], toe), on_t, fade)
@@ -176,6 +177,26 @@ def _lift_to_reach(point: np.ndarray, hip: np.ndarray, limit: float, up: int) ->
                     -np.sqrt(np.maximum(limit ** 2 - horizontal2, 0.0)) - gap[:, up], 0.0)
     out = point.copy()
     out[:, up] += np.maximum(lift, 0.0)
+    return out
+
+
+def _up_to_level(point: np.ndarray, pivot: np.ndarray, level: float, up: int) -> np.ndarray:
+    """``point (F, 3)`` turned about ``pivot (F, 3)`` (radius and horizontal direction kept) up
+    onto ``level`` where it lies below it: a foot pivoting about its planted toe never puts its
+    ankle below the ankle's planted level (the heel through the floor); lifted straight up
+    instead, the foot no longer reached its toe, which moved."""
+    gap = point - pivot
+    radius = np.linalg.norm(gap, axis=-1)
+    rise = level - pivot[:, up]
+    across = gap.copy()
+    across[:, up] = 0.0
+    span = np.linalg.norm(across, axis=-1)
+    turn = (point[:, up] < level) & (radius > np.abs(rise)) & (span > 0)
+    out = point.copy()
+    scale = np.sqrt(np.maximum(radius ** 2 - rise ** 2, 0.0)) / np.where(span > 0, span, 1.0)
+    turned = pivot + across * scale[:, None]
+    turned[:, up] = level
+    out[turn] = turned[turn]
     return out
 
 

@@ -37,7 +37,7 @@ from usdmotion.ops.retarget.hierarchy import (Rig, RetargetError, UnitsMismatchE
                                      derive_rig, mapped_chains, rig_from_motion, source_bone_lengths)
 from usdmotion.ops.retarget import quality as retarget_quality
 from usdmotion.ops.retarget import report as retarget_report
-from usdmotion.ops.retarget.contact_terms import ROOT_SCALES, contact_terms
+from usdmotion.ops.retarget.contact_terms import ROOT_SCALES, contact_terms, solved_ankle_levels
 from usdmotion.ops.retarget.jointmap import JointMap, resolve_map
 from usdmotion.ops.retarget.contact_phase import CONTACT_ITERATIONS, body_weight, contact_phase
 from usdmotion.ops.retarget.leg_ik import legs_of, place_legs
@@ -413,7 +413,7 @@ def retarget(source: Motion, target: Motion | None = None, *, remove=(), add=(),
     init_name = _choose_init(setup, init, method)
     q0 = setup.inits[init_name]
     prepared = time.perf_counter()
-    q, t, solution = _solve(setup, q0, terms, rot_terms, method, iterations, progress)
+    q, t, solution, terms = _solve(setup, q0, terms, rot_terms, method, iterations, progress)
     motion = _output_motion(source, setup, q, t)
     report = retarget_report.build(source, setup, motion, q0, init_name, method, iterations,
                                    {"setup": prepared - start, "compile": solution.compile_s, "solve": solution.run_s},
@@ -432,7 +432,8 @@ def retarget(source: Motion, target: Motion | None = None, *, remove=(), add=(),
 
 def _solve(setup: Setup, q0: np.ndarray, terms, rot_terms, method: str, iterations, progress,
            floor_height: float | None = None):
-    """Step 2 and the unmapped-joint rules: ``(q (F,J,4), t (F,J,3), Solution)``;
+    """Step 2 and the unmapped-joint rules: ``(q (F,J,4), t (F,J,3), Solution, terms)``, ``terms``
+    with the ankles' planted levels where the plain solve stands them (:func:`solved_ankle_levels`);
     ``floor_height`` (target units) for a floor root bone (default: the contacts' floor or estimated)."""
     centre = setup.translations[:, setup.anchor].copy()
     t0 = setup.translations.copy()
@@ -451,6 +452,7 @@ def _solve(setup: Setup, q0: np.ndarray, terms, rot_terms, method: str, iteratio
         q[worse], t[worse] = q0[worse], setup.translations[worse]
     if terms is not None:  # the contact solve: the legs meet the contacts analytically ...
         began = time.perf_counter()
+        terms = solved_ankle_levels(setup, terms, fk_arrays(q, t, setup.rig.parents)[1])
         legs = legs_of(setup.rig.parents, terms.joints, terms.target_contacts.parts, setup.offsets, setup.top)
         place = (setup.rig.parents, setup.anchor, legs, terms.planted, terms.target_contacts.contact, terms.level,
                  terms.up, terms.target_contacts.fps, terms.floor, body_weight(setup, terms))
@@ -463,7 +465,7 @@ def _solve(setup: Setup, q0: np.ndarray, terms, rot_terms, method: str, iteratio
         solution = dataclasses.replace(solution, compile_s=solution.compile_s + compiled,
                                        run_s=solution.run_s + time.perf_counter() - began - compiled)
     q, t = unmapped_rules(setup, q, t, terms.floor if terms is not None else floor_height)
-    return continuous_hemisphere(q), t, solution
+    return continuous_hemisphere(q), t, solution, terms
 
 
 def _compare(source: Motion, setup: Setup, motion: Motion, q0: np.ndarray, terms, rot_terms, iterations) -> dict:
@@ -473,7 +475,7 @@ def _compare(source: Motion, setup: Setup, motion: Motion, q0: np.ndarray, terms
     rows = {"rotation_copy": _output_motion(source, setup, continuous_hemisphere(copy_q), copy_t)}
     solved = {}
     if terms is not None:
-        q, t, solution = _solve(setup, q0, None, rot_terms, "lm", iterations, None, floor)
+        q, t, solution, _ = _solve(setup, q0, None, rot_terms, "lm", iterations, None, floor)
         rows["plain"] = _output_motion(source, setup, q, t)
         solved["plain"] = {"frames_per_second_solve": source.n_frames / solution.run_s if solution.run_s else None,
                            "iterations_run": solution.iterations}
