@@ -190,8 +190,9 @@ def create_app(roots: list[Path], options: dict | None = None, out: Path | None 
         await asyncio.sleep(hold_seconds(request.query_params.get("ms", "0")))
         return Response("", media_type="text/css", headers={"Cache-Control": "no-store"})
 
-    routes = [Route("/", index), Route("/api/hold", hold), *api.routes(), *jobs.routes(api.jobs), *edit_panel.routes(api),
-              *retarget_panel.routes(api), *video_panel.routes(api), *segment_panel.routes(api),
+    routes = [Route("/", index), Route("/api/hold", hold), *api.routes(), *jobs.routes(api.jobs),
+              *edit_panel.routes(api), *retarget_panel.routes(api), *video_panel.routes(api),
+              *segment_panel.routes(api),
               Mount("/app", _Static(directory=WEB, check_dir=False), name="app"),
               Mount("/vendor/three", _Static(directory=NODE_MODULES / "three", check_dir=False), name="three"),
               Mount("/vendor/uplot", _Static(directory=NODE_MODULES / "uplot", check_dir=False), name="uplot")]
