@@ -484,6 +484,38 @@ def test_an_ankle_is_planted_where_the_plain_solve_stands_it_over_its_toe():
     np.testing.assert_array_equal(out.planted[:5], terms.planted[:5])  # off contact: as it was
 
 
+def test_the_fixed_points_search_finds_the_full_grids_least_cost(monkeypatch):
+    """``within_reach`` searches its 41 × 41 grid of shifts coarse to fine: on contacts whose
+    points lie out of the leg's reach by various amounts it moves them exactly where the
+    search of every grid point does (and does move some)."""
+    from usdmotion.ops.retarget import leg_ik
+
+    parents = np.array([-1, 0, 1, 2, 3, 0])
+    offsets = np.array([[0, 0, 0], [10, -5, 0], [0, -40, 0], [0, -40, 0], [0, -6, 12], [0, 30, 0.0]])
+    legs = leg_ik.legs_of(parents, np.array([3, 4]), ("left_ankle", "left_toe"), offsets, 0)
+    n = 400
+    rng = np.random.default_rng(7)
+    contact = np.zeros((n, 2), bool)
+    planted = np.zeros((n, 2, 3))
+    for k, a in enumerate(range(10, n - 40, 40)):  # ten contacts of 30 frames, each at its own point
+        contact[a:a + 30] = True
+        ankle = np.array([rng.uniform(-20, 20), 9.0, rng.uniform(-20, 20)])
+        planted[a:a + 30] = [ankle, ankle + (0, -6, 12)]
+    hips = np.zeros((n, 1, 3))
+    hips[:, 0] = (0, 85, 0) + rng.normal(0, 2, (n, 3))  # the ankle points 73-80 away: some out of reach
+    reach = np.array([80.0])
+
+    def full_grid(cost, steps, coarse=5):
+        points = np.stack(np.meshgrid(steps, steps, indexing="ij"), -1).reshape(-1, 2)
+        return points[int(np.argmin(cost(points)))]
+
+    fast = leg_ik.within_reach(planted, contact, legs, hips, reach, 1, 50.0)
+    monkeypatch.setattr(leg_ik, "_grid_minimum", full_grid)
+    every = leg_ik.within_reach(planted, contact, legs, hips, reach, 1, 50.0)
+    np.testing.assert_array_equal(fast, every)
+    assert np.abs(fast - planted).max() > 0.5  # points did move
+
+
 def test_root_drop_covers_the_need_and_never_steps():
     from usdmotion.ops.retarget.leg_ik import DROP_WINDOW_S, REACH, root_drop
 

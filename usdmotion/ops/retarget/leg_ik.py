@@ -280,23 +280,24 @@ def within_reach(planted: np.ndarray, contact: np.ndarray, legs: list[Leg], hips
     planted = planted.copy()
     horizontal = np.array([i for i in range(3) if i != up])
     steps = np.linspace(-1.0, 1.0, 2 * SHIFT_STEPS + 1)
-    grid = np.stack(np.meshgrid(steps, steps, indexing="ij"), -1).reshape(-1, 2)  # (G, 2)
     for l, leg in enumerate(legs):
         limit = REACH * reach[l]
-        offsets = grid * SHIFT_REACH * reach[l]
         flat = contact[:, leg.ankle_c] & (contact[:, leg.toe_c] if leg.toe >= 0 else True)
         shifts = []
         for a, b in runs(contact[:, leg.ankle_c]):
             point = planted[a, leg.ankle_c]
             hip = hips[a:b, l][flat[a:b]]
-            gap = hip[None, :, horizontal] - (point[horizontal] + offsets)[:, None]  # (G, K, 2)
-            horizontal2 = np.sum(gap ** 2, axis=-1)
-            height = hip[None, :, up] - point[up]
-            need = np.where(horizontal2 < limit ** 2, height - np.sqrt(np.maximum(limit ** 2 - horizontal2, 0.0)),
-                            height)
-            cost = (SHIFT_WEIGHT * (b - a) * np.sum(offsets ** 2, axis=-1)
-                    + body_weight * np.sum(np.maximum(need, 0.0) ** 2, axis=-1))
-            shifts.append((a, b, offsets[int(np.argmin(cost))]))
+
+            def cost(offsets: np.ndarray) -> np.ndarray:  # (G, 2) horizontal shifts -> (G,)
+                gap = hip[None, :, horizontal] - (point[horizontal] + offsets)[:, None]  # (G, K, 2)
+                horizontal2 = np.sum(gap ** 2, axis=-1)
+                height = hip[None, :, up] - point[up]
+                need = np.where(horizontal2 < limit ** 2,
+                                height - np.sqrt(np.maximum(limit ** 2 - horizontal2, 0.0)), height)
+                return (SHIFT_WEIGHT * (b - a) * np.sum(offsets ** 2, axis=-1)
+                        + body_weight * np.sum(np.maximum(need, 0.0) ** 2, axis=-1))
+
+            shifts.append((a, b, _grid_minimum(cost, steps * SHIFT_REACH * reach[l])))
             planted[a:b, leg.ankle_c, horizontal] += shifts[-1][2]
         if leg.toe < 0:
             continue
@@ -307,6 +308,29 @@ def within_reach(planted: np.ndarray, contact: np.ndarray, legs: list[Leg], hips
                 shift = next(d for s, e, d in shifts if s <= middle < e)
                 planted[a:b, leg.toe_c, horizontal] += shift
     return planted
+
+
+def _grid_minimum(cost, steps: np.ndarray, coarse: int = 5) -> np.ndarray:
+    """The point ``(2,)`` of the grid ``steps × steps`` where ``cost`` (``(G, 2)`` points ->
+    ``(G,)``) is least, found coarse to fine: every ``coarse``-th point, then the full grid
+    around the best of them, moved until its best point lies inside the window (a local
+    minimum of the grid; the cost of :func:`within_reach` is convex where the legs reach).
+    Evaluates ~1/8 of the 41 × 41 points (the search took 30 of the leg IK's 70 ms)."""
+    n = len(steps)
+    index = lambda i, j: np.stack(np.meshgrid(i, j, indexing="ij"), -1).reshape(-1, 2)  # noqa: E731
+    coarse_i = np.arange(0, n, coarse)
+    points = index(coarse_i, coarse_i)
+    best = points[int(np.argmin(cost(steps[points])))]
+    for _ in range(n):  # each move lowers the cost; a plateau ends it
+        window = [np.arange(max(c - coarse, 0), min(c + coarse, n - 1) + 1) for c in best]
+        points = index(*window)
+        found = points[int(np.argmin(cost(steps[points])))]
+        inside = all(w[0] == 0 and f == 0 or w[-1] == n - 1 and f == n - 1 or w[0] < f < w[-1]
+                     for f, w in zip(found, window))
+        if inside or (found == best).all():
+            break
+        best = found
+    return steps[found]
 
 
 def hip_spikes(height: np.ndarray) -> np.ndarray:
