@@ -516,6 +516,42 @@ def test_the_fixed_points_search_finds_the_full_grids_least_cost(monkeypatch):
     assert np.abs(fast - planted).max() > 0.5  # points did move
 
 
+def test_the_leg_ik_reads_the_legs_forward_kinematics_alone_and_gets_the_same_numbers(monkeypatch):
+    """The leg IK computes world transforms of the legs and what carries them only (not the
+    spine, arms, head: ~1/5 of a 70-joint rig); its result is the same to the bit as with the
+    whole skeleton's forward kinematics."""
+    from usdmotion.ops.retarget import leg_ik
+
+    # hips, a spine with two arms of three joints, two legs (thigh, knee, ankle, toe, toe tip)
+    parents = np.array([-1, 0, 1, 2, 3, 1, 5, 0, 7, 8, 9, 10, 0, 12, 13, 14, 15])
+    rng = np.random.default_rng(11)
+    n, joints = 50, len(parents)
+    offsets = rng.normal(0, 10, (joints, 3))
+    offsets[[8, 9, 13, 14]] = (0, -40, 0)
+    q = euler_to_quat(rng.uniform(-0.4, 0.4, (n, joints, 3)), "ZXY")
+    t = np.broadcast_to(offsets, (n, joints, 3)).copy()
+    t[:, 0] = (0, 85, 0)
+    legs = leg_ik.legs_of(parents, np.array([10, 11, 15, 16]), ("left_ankle", "left_toe", "right_ankle", "right_toe"),
+                          offsets, 0)
+    chain = leg_ik._chain_joints(parents, legs, 0)
+    np.testing.assert_array_equal(chain, [0, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16])  # no spine, no arms
+    world_q, world_p = leg_ik._fk_of(q, t, parents, chain)
+    full_q, full_p = fk_arrays(q, t, parents)
+    np.testing.assert_array_equal(world_q[:, chain], full_q[:, chain])
+    np.testing.assert_array_equal(world_p[:, chain], full_p[:, chain])
+    world = full_p
+    contact = np.zeros((n, 4), bool)
+    contact[10:40] = True
+    planted = np.zeros((n, 4, 3))
+    planted[10:40] = world[25, [10, 11, 15, 16]] + (1.0, -3.0, 0.5)
+    args = (q, t, parents, 0, legs, planted, contact, planted[25, :, 1] - 0.5, 1, 120.0,
+            float(world[..., 1].min() - 5.0))
+    chained = leg_ik.place_legs(*args)
+    monkeypatch.setattr(leg_ik, "_fk_of", lambda q, t, parents, joints: fk_arrays(q, t, parents))
+    for a, b in zip(chained, leg_ik.place_legs(*args)):
+        np.testing.assert_array_equal(a, b)
+
+
 def test_root_drop_covers_the_need_and_never_steps():
     from usdmotion.ops.retarget.leg_ik import DROP_WINDOW_S, REACH, root_drop
 
