@@ -49,12 +49,14 @@ def contact_phase(setup, terms, legs, q: np.ndarray, t: np.ndarray, problem: Pro
     leg IK's result ``q, t`` (anchor world-placed) for ``iterations`` iterations, every contact joint held where the IK put
     it on its contact frames (weight :data:`CONTACT_WEIGHT`, fading out around them): the
     root, the hips and the ``legs`` (:class:`~usdmotion.ops.retarget.leg_ik.Leg`) re-fit
-    the source given the planted feet (what the root's drop and the IK's knees cost), and the
-    upper body turns back towards its pose, held near its world rotations (:data:`UPPER_BODY_PRIOR`)."""
+    the source given the planted feet (what the root's drop and the IK's knees cost); where
+    :data:`UPPER_BODY_PRIOR` is set (off by default) the upper body turns too, held near its
+    world rotations."""
     mapped, anchor = setup.mapped, setup.anchor
     base = problem
     # the hips (and what carries them) and each leg's hip, knee and ankle turn freely, the upper body
-    # against a pull; the toes and joints between the hips and a leg keep the plain solve's rotations
+    # against a pull where one is set; the toes, the joints between the hips and a leg (and, without
+    # the pull, the upper body) keep the plain solve's rotations
     ancestor = ancestor_matrix(setup.rig.parents)  # [i, j]: i is an ancestor of j
     turn = (ancestor | np.eye(setup.rig.n_joints, dtype=bool))[:, setup.top]
     turn[[j for leg in legs for j in (leg.hip, leg.knee, leg.ankle)]] = True
