@@ -57,3 +57,10 @@ def write_results(name: str, payload: dict) -> Path:
     path = RESULTS / f"{name}.json"
     path.write_text(json.dumps({"benchmark": name, "machine": machine(), **payload}, indent=2) + "\n")
     return path
+
+
+def save_rows(name: str, rows: list[dict]) -> int:
+    """:func:`write_results` of ``rows`` with the 1-minute load average, say where; exit status 0."""
+    path = write_results(name, {"rows": rows, "load_1min": os.getloadavg()[0]})
+    print(f"\nwrote {path.relative_to(REPO)}")
+    return 0

@@ -97,6 +97,36 @@ def load_pair(source_spec, target_spec, target_kw) -> tuple:
     return source, read(target_spec, **target_kw), path, target_spec, {}
 
 
+def pairs_with_data(text: str = "", quick: bool = False) -> list[tuple]:
+    """The :data:`PAIRS` whose label contains one of the comma-separated ``text`` (all when
+    empty; ``quick``: the walk's only) and whose files are under ``SHARED_DATA`` (the others
+    are named as skipped)."""
+    wanted = [w.strip().lower() for w in text.split(",") if w.strip()]
+    pairs = []
+    for pair in PAIRS:
+        label, source_spec, target_spec, _ = pair
+        if (quick and source_spec is not WALK) or (wanted and not any(w in label.lower() for w in wanted)):
+            continue
+        missing = [p for p in (source_spec[0], target_spec) if isinstance(p, str) and not (SHARED_DATA / p).exists()]
+        if missing:
+            print(f"skip {label}: {missing[0]} not found under {SHARED_DATA}")
+            continue
+        pairs.append(pair)
+    return pairs
+
+
+def pairs_from_argv(description: str, argv=None) -> list[tuple]:
+    """The pairs a ``--pairs TEXT[,TEXT...]`` command line picks (:func:`pairs_with_data`), with
+    JAX's compile cache on: the command line of the per-pair studies of the contact solve."""
+    parser = argparse.ArgumentParser(description=description)
+    parser.add_argument("--pairs", default="", help="comma-separated texts: only the pairs whose label contains one")
+    args = parser.parse_args(argv)
+    from usdmotion.ops.retarget.jax_runtime import enable_compilation_cache
+
+    enable_compilation_cache()
+    return pairs_with_data(args.pairs)
+
+
 def run_pair(label, source_spec, target_spec, target_kw) -> dict:
     from usdmotion.ops.retarget.pipeline import retarget
 
@@ -193,15 +223,8 @@ def main(argv=None) -> int:
     importlib.import_module("usdmotion.ops.retarget.solve").DAMPING = args.damping
     name = "retarget_contacts" + ("" if args.damping == "nielsen" else "_" + args.damping)
     enable_compilation_cache()
-    wanted = [w.strip().lower() for w in args.pairs.split(",") if w.strip()]
-    pairs = [p for p in PAIRS if (not args.quick or p[1] is WALK)
-             and (not wanted or any(w in p[0].lower() for w in wanted))]
     rows = []
-    for label, source_spec, target_spec, target_kw in pairs:
-        missing = [p for p in (source_spec[0], target_spec) if isinstance(p, str) and not (SHARED_DATA / p).exists()]
-        if missing:
-            print(f"skip {label}: {missing[0]} not found under {SHARED_DATA}")
-            continue
+    for label, source_spec, target_spec, target_kw in pairs_with_data(args.pairs, quick=args.quick):
         row = run_pair(label, source_spec, target_spec, target_kw)
         row["load_1min"] = os.getloadavg()[0]
         row["goals"] = goals(row)

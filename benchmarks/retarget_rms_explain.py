@@ -23,7 +23,6 @@ Run: ``python benchmarks/retarget_rms_explain.py [--pairs TEXT[,TEXT...]]``; wri
 
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 from pathlib import Path
@@ -31,8 +30,8 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import REPO, SHARED_DATA, print_table, write_results  # noqa: E402
-from retarget_contacts import PAIRS, load_pair  # noqa: E402
+from _common import print_table, save_rows  # noqa: E402
+from retarget_contacts import load_pair, pairs_from_argv  # noqa: E402
 
 
 def contact_setup(source, target, options, path, target_path):
@@ -136,21 +135,8 @@ def explain_pair(label, source_spec, target_spec, target_kw) -> dict:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--pairs", default="", help="comma-separated texts: only the pairs whose label contains one")
-    args = parser.parse_args(argv)
-    from usdmotion.ops.retarget.jax_runtime import enable_compilation_cache
-
-    enable_compilation_cache()
-    wanted = [w.strip().lower() for w in args.pairs.split(",") if w.strip()]
     rows = []
-    for label, source_spec, target_spec, target_kw in PAIRS:
-        if wanted and not any(w in label.lower() for w in wanted):
-            continue
-        missing = [p for p in (source_spec[0], target_spec) if isinstance(p, str) and not (SHARED_DATA / p).exists()]
-        if missing:
-            print(f"skip {label}: {missing[0]} not found under {SHARED_DATA}")
-            continue
+    for label, source_spec, target_spec, target_kw in pairs_from_argv(__doc__.splitlines()[0], argv):
         rows.append(explain_pair(label, source_spec, target_spec, target_kw))
         print(f"{label}: largest rises (cm²) " + ", ".join(f"{k} {v:.2f}" for k, v in
                                                           rows[-1]["rise_cm2_by_joint"].items()), flush=True)
@@ -163,9 +149,7 @@ def main(argv=None) -> int:
                 [[r["pair"], f"{r['rms_plain_cm']:.2f}", f"{r['rms_drop_only_cm']:.2f}", f"{r['rms_contacts_cm']:.2f}",
                   f"{r['ms_contacts_cm2'] - r['ms_plain_cm2']:.2f}", *(f"{r['rise_cm2'][k]:.2f}" for k in causes),
                   f"{r['drop_mean_cm']:.2f}/{r['drop_max_cm']:.2f}"] for r in rows])
-    path = write_results("retarget_rms_explain", {"rows": rows, "load_1min": os.getloadavg()[0]})
-    print(f"\nwrote {path.relative_to(REPO)}")
-    return 0
+    return save_rows("retarget_rms_explain", rows)
 
 
 if __name__ == "__main__":
