@@ -21,7 +21,10 @@ machine is shared: a loaded machine gives the batch fewer cores than it has work
 ``--pairs N`` then runs the loop and ``dask-2`` N more times, back to back (in turn first), and prints
 each pair's wall-time ratio and their median: this machine's speed drifts by ±10-20 % from one
 minute to the next (a pure-Python loop timed alone three times ran 708-936 iterations a second),
-so one loop against one batch run minutes apart says little; pairs taken back to back do.
+so one loop against one batch run minutes apart says little; pairs taken back to back do. Each
+round then also runs two copies of the loop at once in two subprocesses with the workers'
+one-thread environment (no Dask): what the two cores give two plain processes in that minute,
+the ceiling the batch's ratio compares with.
 Warnings (e.g. IMPLAUSIBLE UNITS of the cgspeed takes read in centimetres) are collected,
 as the batch collects them into its catalogue, and counted, not printed. Prints a table and
 writes ``benchmarks/results/batch.json``.
@@ -121,15 +124,30 @@ ONE_THREAD = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THRE
 
 def sequential_one_thread(library: Path, out: Path, operation: str) -> dict:
     """:func:`sequential` in a fresh subprocess with :data:`ONE_THREAD`."""
+    return sequential_processes(library, out, operation, 1)[0]
+
+
+def sequential_processes(library: Path, out: Path, operation: str, copies: int) -> list[dict]:
+    """``copies`` subprocesses at once, each running :func:`sequential` on the whole library
+    with :data:`ONE_THREAD` (the workers' environment) into its own folder: with 2 copies,
+    what this machine's two cores give two plain processes, without Dask."""
     code = ("import json, sys; sys.path.insert(0, sys.argv[1]); import batch; "
             "print(json.dumps(batch.sequential(batch.Path(sys.argv[2]), batch.Path(sys.argv[3]), sys.argv[4])))")
     from usdmotion.batch.engine import WORKER_ENV
 
     env = {**os.environ, **ONE_THREAD, **WORKER_ENV}
     env.pop("MALLOC_TRIM_THRESHOLD_", None)  # a LocalCluster started earlier in this process leaks Dask's setting
-    done = subprocess.run([sys.executable, "-c", code, str(Path(__file__).parent), str(library), str(out), operation],
-                          env=env, capture_output=True, text=True, check=True)
-    return json.loads(done.stdout.strip().splitlines()[-1])
+    procs = [subprocess.Popen([sys.executable, "-c", code, str(Path(__file__).parent), str(library),
+                               str(out / f"copy{i}" if copies > 1 else out), operation],
+                              env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+             for i in range(copies)]
+    results = []
+    for proc in procs:
+        stdout, stderr = proc.communicate()
+        if proc.returncode:
+            raise subprocess.CalledProcessError(proc.returncode, proc.args, stdout, stderr)
+        results.append(json.loads(stdout.strip().splitlines()[-1]))
+    return results
 
 
 def _tree_cpu() -> dict[int, float]:
@@ -252,11 +270,15 @@ def alternated_pairs(library: Path, work: Path, operation: str, pairs: int) -> l
         else:
             loop = sequential(library, loop_out, operation)["wall_s"]
             batch = batch_run(library, batch_out, operation, 2)["wall_s"]
-        rounds.append({"loop_s": loop, "dask2_s": batch, "ratio": loop / batch, "load": os.getloadavg()[0]})
-        for done in (loop_out, batch_out.parent):
+        two_out = work / f"pair{i}-two-{operation}"
+        two = max(r["wall_s"] for r in sequential_processes(library, two_out, operation, 2))
+        rounds.append({"loop_s": loop, "dask2_s": batch, "ratio": loop / batch, "two_loops_s": two,
+                       "two_loops_ratio": 2 * loop / two, "load": os.getloadavg()[0]})
+        for done in (loop_out, batch_out.parent, two_out):
             shutil.rmtree(done, ignore_errors=True)  # an analyze round writes ~0.6 GB
-        print(f"  {operation} pair {i + 1}: loop {loop:.1f} s, dask-2 {batch:.1f} s, {loop / batch:.2f}x "
-              f"(load {rounds[-1]['load']:.1f})", flush=True)
+        print(f"  {operation} pair {i + 1}: loop {loop:.1f} s, dask-2 {batch:.1f} s, {loop / batch:.2f}x; "
+              f"two 1-thread loops at once {two:.1f} s, {2 * loop / two:.2f}x (load {rounds[-1]['load']:.1f})",
+              flush=True)
     return rounds
 
 
@@ -353,8 +375,11 @@ def main() -> None:
         for operation in args.operations.split(",") if args.pairs else ():
             pairs[operation] = alternated_pairs(library, work, operation, args.pairs)
             ratios = [r["ratio"] for r in pairs[operation]]
+            ceilings = [r["two_loops_ratio"] for r in pairs[operation]]
             print(f"  {operation}: dask-2 against the loop, {args.pairs} alternated pairs: median "
-                  f"{statistics.median(ratios):.2f}x (" + ", ".join(f"{r:.2f}" for r in ratios) + ")")
+                  f"{statistics.median(ratios):.2f}x (" + ", ".join(f"{r:.2f}" for r in ratios) + "); two plain "
+                  f"1-thread loops at once in the same rounds: median {statistics.median(ceilings):.2f}x ("
+                  + ", ".join(f"{r:.2f}" for r in ceilings) + ")")
         path = write_results("batch", {"takes": takes, "frames": frames, "frames_per_take": args.frames,
                                        "results": results, "per_take_costs": costs, "on_paper_takes_per_s": paper,
                                        "alternated_pairs": pairs})
