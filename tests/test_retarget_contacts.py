@@ -420,6 +420,54 @@ def test_leg_ik_puts_ankle_and_toe_on_their_points_and_keeps_the_bones():
     assert np.all(np.sum(bend(after) * bend(world_p), axis=-1) > 0)
 
 
+def test_the_snap_puts_the_legs_back_on_the_ik_points_and_leaves_the_rest_of_the_phase():
+    """After the contact phase the legs go back onto where the leg IK held their contact joints:
+    exactly on contact frames (the root coming down only where a raised hip cannot reach), the
+    ankle a foot's length from its toe on toe-only frames and never below its level, the knee
+    bending the way the phase bent it, and nothing moved on frames far from any contact."""
+    from usdmotion.ops.retarget.leg_ik import legs_of
+    from usdmotion.ops.retarget.leg_reach import DROP_WINDOW_S
+    from usdmotion.ops.retarget.leg_snap import snap_legs
+
+    parents = np.array([-1, 0, 1, 2, 3, 0])  # hips, thigh, knee, ankle, toe; spine
+    offsets = np.array([[0, 0, 0], [10, -5, 0], [0, -40, 0], [0, -40, 0], [0, -6, 12], [0, 30, 0.0]])
+    n, fps, fade_s = 120, 60.0, 0.2
+    rng = np.random.default_rng(5)
+    q = euler_to_quat(rng.uniform(-0.2, 0.2, (n, 6, 3)), "ZXY")
+    q[:, 2] = axis_angle_quat("X", np.radians(rng.uniform(40, 50, n)))  # a bent knee: the points within reach
+    t = np.broadcast_to(offsets, (n, 6, 3)).copy()
+    t[:, 0] = (0, 80, 0)
+    t[40:44, 0, 1] = 92.0  # the phase raised the hips for four frames: the held ankle is out of reach there
+    world = fk_arrays(q, t, parents)[1]
+    contact = np.zeros((n, 2), bool)
+    contact[30:60, 0] = True  # ankle
+    contact[30:75, 1] = True  # toe, on alone after heel-off
+    low = world[:, 3, 1].min() - 0.5  # the ankle's planted level: below the phase's ankle everywhere
+    ankle = np.median(world[30:60, 3], axis=0) + (0.5, 0.0, -0.5)
+    toe = ankle + (0, -6, 12)
+    held = world[:, [3, 4]].copy()
+    held[30:60, 0] = ankle
+    held[30:75, 1] = toe
+    level = np.array([low, world[:, 4, 1].min() - 0.5])  # the toe's too
+    legs = legs_of(parents, np.array([3, 4]), ("left_ankle", "left_toe"), offsets, 0)
+    q2, t2 = snap_legs(q, t, parents, 0, legs, held, contact, level, 1, fps, fade_s, low - 20.0)
+    after = fk_arrays(q2, t2, parents)[1]  # independent FK of the result
+    np.testing.assert_allclose(after[30:60, 3], held[30:60, 0], atol=1e-9)
+    np.testing.assert_allclose(after[30:75, 4], held[30:75, 1], atol=1e-9)
+    foot = np.linalg.norm(offsets[4])
+    np.testing.assert_allclose(np.linalg.norm(after[60:75, 3] - after[60:75, 4], axis=-1), foot, rtol=1e-9)
+    assert after[:, 3, 1].min() >= low - 1e-9  # no ankle below its level
+    drop = t[:, 0, 1] - t2[:, 0, 1]
+    assert drop[40:44].min() > 0 and drop.min() >= 0  # the root came down where it had to, never up
+    window = int(DROP_WINDOW_S * fps) + 1
+    assert not drop[: 40 - window].any() and not drop[44 + window:].any()
+    along = lambda p: np.cross(p[:, 3] - p[:, 1], p[:, 2] - p[:, 1])  # noqa: E731 - the knee's bend side
+    assert np.all(np.sum(along(after) * along(world), axis=-1) > 0)
+    far = np.r_[0:30 - int(fade_s * fps) - 1, 75 + int(fade_s * fps) + 1:n]
+    np.testing.assert_allclose(after[far], world[far], atol=1e-9)
+    np.testing.assert_array_equal(q2[:, [0, 5]], q[:, [0, 5]])  # only the leg turns
+
+
 def test_a_toe_only_contact_turns_the_foot_about_the_toe_never_the_heel_below_its_level():
     """Where the solve's foot, pivoted about its planted toe, would put the ankle below the
     ankle's planted level (the heel through the floor), the foot turns up about the toe onto
@@ -533,9 +581,9 @@ def test_the_leg_ik_reads_the_legs_forward_kinematics_alone_and_gets_the_same_nu
     t[:, 0] = (0, 85, 0)
     legs = leg_ik.legs_of(parents, np.array([10, 11, 15, 16]), ("left_ankle", "left_toe", "right_ankle", "right_toe"),
                           offsets, 0)
-    chain = leg_ik._chain_joints(parents, legs, 0)
+    chain = leg_ik.chain_joints(parents, legs, 0)
     np.testing.assert_array_equal(chain, [0, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16])  # no spine, no arms
-    world_q, world_p = leg_ik._fk_of(q, t, parents, chain)
+    world_q, world_p = leg_ik.fk_of(q, t, parents, chain)
     full_q, full_p = fk_arrays(q, t, parents)
     np.testing.assert_array_equal(world_q[:, chain], full_q[:, chain])
     np.testing.assert_array_equal(world_p[:, chain], full_p[:, chain])
@@ -547,13 +595,13 @@ def test_the_leg_ik_reads_the_legs_forward_kinematics_alone_and_gets_the_same_nu
     args = (q, t, parents, 0, legs, planted, contact, planted[25, :, 1] - 0.5, 1, 120.0,
             float(world[..., 1].min() - 5.0))
     chained = leg_ik.place_legs(*args)
-    monkeypatch.setattr(leg_ik, "_fk_of", lambda q, t, parents, joints: fk_arrays(q, t, parents))
+    monkeypatch.setattr(leg_ik, "fk_of", lambda q, t, parents, joints: fk_arrays(q, t, parents))
     for a, b in zip(chained, leg_ik.place_legs(*args)):
         np.testing.assert_array_equal(a, b)
 
 
 def test_root_drop_covers_the_need_and_never_steps():
-    from usdmotion.ops.retarget.leg_ik import DROP_WINDOW_S, REACH, root_drop
+    from usdmotion.ops.retarget.leg_reach import DROP_WINDOW_S, REACH, root_drop
 
     n, fps = 300, 120.0
     rng = np.random.default_rng(4)

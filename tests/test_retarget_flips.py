@@ -144,7 +144,7 @@ def test_leg_ik_knee_keeps_its_hinge_where_the_solved_leg_is_straight():
 def test_leg_ik_one_frame_hip_spike_leaves_the_knee_alone():
     """Cause (86_01 -> Rokoko frame 430: RightLeg 11.1°/10.9): the solved hips rose 7 mm for one
     frame while the planted leg was at full reach, so the knee straightened 11° and back; fixed
-    by the root taking such a spike (leg_ik.hip_spikes). Independent check: the lowered hip's
+    by the root taking such a spike (leg_reach.hip_spikes). Independent check: the lowered hip's
     height (FK of the result) has no one-frame spike, and the knee steps no more than elsewhere."""
     from usdmotion.ops.retarget.leg_ik import legs_of, place_legs
 

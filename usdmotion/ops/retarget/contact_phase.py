@@ -2,8 +2,9 @@
 
 After the leg IK (:mod:`usdmotion.ops.retarget.leg_ik`) has planted the feet, a few
 iterations of the same batched LM solve re-fit the hips and legs to the source with every
-contact joint held where the IK put it (:func:`contact_phase`); the IK then runs again so
-the contacts hold exactly (``pipeline._solve``). Contact terms:
+contact joint held where the IK put it (:func:`contact_phase`); the legs are then snapped
+back onto those points (:func:`usdmotion.ops.retarget.leg_snap.snap_legs`), so the contacts
+hold exactly. Contact terms:
 :class:`usdmotion.ops.retarget.problem.Problem` ``contact_joints`` with per-frame weights.
 """
 
@@ -17,12 +18,13 @@ from usdmotion.kinematics import fk_arrays
 from usdmotion.ops.retarget.contact_terms import leg_joints
 from usdmotion.ops.retarget.hierarchy import ancestor_matrix
 from usdmotion.ops.retarget.leg_ik import nearness
+from usdmotion.ops.retarget.leg_snap import snap_legs
 from usdmotion.ops.retarget.problem import Problem
 from usdmotion.ops.retarget.rotation_terms import smooth_scale
 from usdmotion.ops.retarget.solve import solve
 
 #: Iterations of the LM contact phase of the contact solve (0: off), warm-started from the
-#: leg IK's result, which then runs again (``pipeline._solve``).
+#: leg IK's result; the legs are snapped back onto the IK's points after it.
 CONTACT_ITERATIONS = 5
 #: Weight of a planted contact joint's distance from where the leg IK put it, in the
 #: contact phase (the mapped joints weigh 1 per unit²).
@@ -51,7 +53,8 @@ def contact_phase(setup, terms, legs, q: np.ndarray, t: np.ndarray, problem: Pro
     root, the hips and the ``legs`` (:class:`~usdmotion.ops.retarget.leg_ik.Leg`) re-fit
     the source given the planted feet (what the root's drop and the IK's knees cost); where
     :data:`UPPER_BODY_PRIOR` is set (off by default) the upper body turns too, held near its
-    world rotations."""
+    world rotations. The legs then snap back onto the held points
+    (:func:`~usdmotion.ops.retarget.leg_snap.snap_legs`): the contacts hold exactly."""
     mapped, anchor = setup.mapped, setup.anchor
     base = problem
     # the hips (and what carries them) and each leg's hip, knee and ankle turn freely, the upper body
@@ -86,7 +89,9 @@ def contact_phase(setup, terms, legs, q: np.ndarray, t: np.ndarray, problem: Pro
     solution = solve(problem, q, t0, targets, iterations=iterations, weights=weights)
     t = solution.t
     t[:, anchor] += centre
-    return solution.q, t, solution
+    q, t = snap_legs(solution.q, t, setup.rig.parents, anchor, legs, held, terms.target_contacts.contact, terms.level,
+                     terms.up, terms.target_contacts.fps, CONTACT_FADE_S, terms.floor)
+    return q, t, solution
 
 
 def body_weight(setup, terms) -> float:

@@ -14,9 +14,9 @@ frames at once in float64 NumPy (no per-frame loop):
    (footskate clean-up, Kovar et al. 2002), faded out over :data:`FADE_S` from the nearer
    contact. No target lies below the joint's planted level.
 2. **Reach**: where a foot planted flat (ankle and toe down) lies beyond the leg's length
-   from the solved hip, the root comes down (:func:`root_drop`) by the least amount that
-   reaches it, smoothed over :data:`DROP_WINDOW_S` (a running maximum, then a moving mean
-   of it: never less than needed, never a step). A held ankle target still out of reach
+   from the solved hip, the root comes down (:func:`~usdmotion.ops.retarget.leg_reach.root_drop`)
+   by the least amount that reaches it, smoothed over ``leg_reach.DROP_WINDOW_S`` (a running
+   maximum, then a moving mean of it: never less than needed, never a step). A held ankle target still out of reach
    from the lowered hip is raised (only the ankle down: straight up; with the toe down:
    by turning the foot about the toe's point — the heel lifts).
 3. **Two-bone IK** (:func:`place_legs`): the knee stays in the plane of the solved leg (its
@@ -36,16 +36,12 @@ import numpy as np
 from usdmotion.kinematics import fk_arrays
 from usdmotion.ops.contacts.detect import runs
 from usdmotion.ops.retarget.hierarchy import ancestor_matrix
+from usdmotion.ops.retarget.leg_reach import REACH, hip_spikes, leg_reach, lower_root, root_drop
 from usdmotion.rotations import quat_conjugate, quat_mul, quat_normalize, quat_rotate
 from usdmotion.skeleton_names import descendants
 
-#: Seconds over which the root's drop is smoothed (see :func:`root_drop`).
-DROP_WINDOW_S = 0.15
-#: A leg is never stretched beyond this share of its length (a fully straight knee has no
-#: bend direction to keep).
-REACH = 0.9995
 #: Weight of the foot's heading (per unit of bone length) in the direction a toe End Site
-#: below the floor is lifted in (see :func:`_toes_above_floor`).
+#: below the floor is lifted in (see :func:`toes_above_floor`).
 HEADING_SHARE = 0.02
 #: Seconds over which a contact's offset fades out into the swing (see :func:`_follow`).
 FADE_S = 0.2
@@ -159,7 +155,7 @@ def foot_targets(world_p: np.ndarray, leg: Leg, planted: np.ndarray, contact: np
         pivot = _unit(foot + _interp_rows(frames, known, correction)) * np.linalg.norm(foot, axis=-1, keepdims=True)
         only_toe = on_t & ~on_a
         pivoted = _turn_to_reach(planted[:, leg.toe_c] + pivot, planted[:, leg.toe_c], hip, limit)
-        pivoted = _up_to_level(pivoted, planted[:, leg.toe_c], level[leg.ankle_c], up)
+        pivoted = up_to_level(pivoted, planted[:, leg.toe_c], level[leg.ankle_c], up)
         desired = np.where(only_toe[:, None], pivoted, desired)
         held |= only_toe
         toe_target = _follow(frames, toe, np.where(on_t[:, None], planted[:, leg.toe_c], toe), on_t, fade)
@@ -181,7 +177,7 @@ def _lift_to_reach(point: np.ndarray, hip: np.ndarray, limit: float, up: int) ->
     return out
 
 
-def _up_to_level(point: np.ndarray, pivot: np.ndarray, level: float, up: int) -> np.ndarray:
+def up_to_level(point: np.ndarray, pivot: np.ndarray, level: float, up: int) -> np.ndarray:
     """``point (F, 3)`` turned about ``pivot (F, 3)`` (radius and horizontal direction kept) up
     onto ``level`` where it lies below it: a foot pivoting about its planted toe never puts its
     ankle below the ankle's planted level (the heel through the floor); lifted straight up
@@ -236,27 +232,6 @@ def nearness(held: np.ndarray, fade: float) -> np.ndarray:
     after = np.minimum.accumulate(np.where(held, frames, 2 * frames.size + fade)[::-1])[::-1] - frames
     near = np.clip(1.0 - np.minimum(before, after) / fade, 0.0, 1.0)
     return near * near * (3.0 - 2.0 * near)
-
-
-def root_drop(hips: np.ndarray, reach: np.ndarray, ankle_targets: np.ndarray, up: int, fps: float) -> np.ndarray:
-    """``(F,)`` how far (target units, ≥ 0) the root must come down so every leg reaches its
-    ankle target: per frame the largest over legs of the least drop of the hip ``hips
-    (F, L, 3)`` that brings ``ankle_targets (F, L, 3)`` within ``REACH · reach (L,)``, then
-    a running maximum and a moving mean of it over :data:`DROP_WINDOW_S` (each mean covers
-    only maxima that include its frame, so it never falls below that frame's need)."""
-    gap = hips - ankle_targets
-    height = gap[..., up]
-    horizontal2 = np.sum(gap ** 2, axis=-1) - height ** 2
-    limit = (REACH * reach)[None] ** 2
-    need = np.where(horizontal2 < limit, height - np.sqrt(np.maximum(limit - horizontal2, 0.0)), height)
-    need = np.maximum(need, 0.0).max(axis=1) if need.size else np.zeros(hips.shape[0])
-    if not need.any():
-        return need
-    half = max(1, int(round(DROP_WINDOW_S * fps / 2)))
-    padded = np.pad(need, half, mode="edge")
-    windows = np.lib.stride_tricks.sliding_window_view(padded, 2 * half + 1)
-    peak = np.pad(windows.max(axis=1), half, mode="edge")
-    return np.lib.stride_tricks.sliding_window_view(peak, 2 * half + 1).mean(axis=1)
 
 
 def within_reach(planted: np.ndarray, contact: np.ndarray, legs: list[Leg], hips: np.ndarray, reach: np.ndarray,
@@ -329,19 +304,6 @@ def _grid_minimum(cost, steps: np.ndarray, coarse: int = 5) -> np.ndarray:
     return steps[best]
 
 
-def hip_spikes(height: np.ndarray) -> np.ndarray:
-    """``(F,)`` how far (≥ 0) the hips' ``height (F,)`` rises above the median of it and its two
-    neighbours: a one-frame upward spike (a mocap glitch). Where the root already comes down
-    (:func:`root_drop`: a leg at full reach) it comes down by this much more, so the spike
-    leaves the root instead of straightening the planted leg's knee for a frame (86_01 →
-    Rokoko frame 430: the hips 7 mm up for one frame turned the right knee 11° and back)."""
-    if height.shape[0] < 3:
-        return np.zeros_like(height)
-    padded = np.pad(height, 1, mode="edge")
-    median = np.median(np.lib.stride_tricks.sliding_window_view(padded, 3), axis=1)
-    return np.maximum(height - median, 0.0)
-
-
 def _swing(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``(..., 4)`` the shortest rotations taking directions ``a`` to ``b`` ``(..., 3)``."""
     a, b = _unit(a), _unit(b)
@@ -360,10 +322,9 @@ def place_legs(q: np.ndarray, t: np.ndarray, parents: np.ndarray, anchor: int, l
     q, t = q.copy(), t.copy()
     if not legs:
         return q, t, np.zeros(q.shape[0])
-    chain = _chain_joints(parents, legs, anchor)
-    world_q, world_p = _fk_of(q, t, parents, chain)
-    reach = np.array([np.linalg.norm(world_p[:, leg.knee] - world_p[:, leg.hip], axis=-1).mean()
-                      + np.linalg.norm(world_p[:, leg.ankle] - world_p[:, leg.knee], axis=-1).mean() for leg in legs])
+    chain = chain_joints(parents, legs, anchor)
+    world_q, world_p = fk_of(q, t, parents, chain)
+    reach = leg_reach(world_p, legs)
     # the root comes down where a foot planted flat (ankle and toe) lies out of the leg's reach;
     # then the targets are found from the lowered hips (heels lifted, feet turned where needed)
     flat = np.stack([contact[:, leg.ankle_c] & (contact[:, leg.toe_c] if leg.toe >= 0 else True) for leg in legs], 1)
@@ -372,21 +333,15 @@ def place_legs(q: np.ndarray, t: np.ndarray, parents: np.ndarray, anchor: int, l
     points = planted[:, [leg.ankle_c for leg in legs]]
     drop = root_drop(np.where(flat[..., None], hips, points), reach, points, up, fps)
     drop = drop + np.where(drop > 0, hip_spikes(hips[..., up].mean(axis=1)), 0.0)
-    if drop.max() > 0:
-        shift = np.zeros((q.shape[0], 3))
-        shift[:, up] = -drop
-        parent = parents[anchor]
-        local = shift if parent < 0 else quat_rotate(quat_conjugate(world_q[:, parent]), shift)
-        t[:, anchor] += local
-        world_p = world_p + shift[:, None]
+    world_p = lower_root(t, world_q, world_p, parents, anchor, drop, up)
     targets = [foot_targets(world_p, leg, planted, contact, level, up, r, FADE_S * fps) for leg, r in zip(legs, reach)]
     for leg, (ankle_target, toe_target, _) in zip(legs, targets):
-        q = _two_bone(q, world_q, world_p, parents, leg, ankle_target, toe_target, up,
+        q = two_bone(q, world_q, world_p, parents, leg, ankle_target, toe_target, up,
                       level[leg.toe_c] if leg.toe >= 0 else None)
-    return _toes_above_floor(q, t, parents, legs, floor, up, chain), t, drop
+    return toes_above_floor(q, t, parents, legs, floor, up, chain), t, drop
 
 
-def _chain_joints(parents: np.ndarray, legs: list[Leg], anchor: int) -> np.ndarray:
+def chain_joints(parents: np.ndarray, legs: list[Leg], anchor: int) -> np.ndarray:
     """``(K,)`` sorted joints the leg IK reads: the legs' joints, the joints below each toe
     (or toeless ankle), ``anchor``, and every ancestor of these (closed under parents)."""
     anc = ancestor_matrix(parents)  # [i, j]: i is an ancestor of j
@@ -396,7 +351,7 @@ def _chain_joints(parents: np.ndarray, legs: list[Leg], anchor: int) -> np.ndarr
     return np.flatnonzero(keep)
 
 
-def _fk_of(q: np.ndarray, t: np.ndarray, parents: np.ndarray, joints: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def fk_of(q: np.ndarray, t: np.ndarray, parents: np.ndarray, joints: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """:func:`~usdmotion.kinematics.fk_arrays` of ``joints`` only (closed under parents: the same
     numbers as the whole skeleton's), in arrays of every joint (the others identity and 0):
     the leg IK needs the legs and what carries them, ~1/5 of a 70-joint rig."""
@@ -411,11 +366,11 @@ def _fk_of(q: np.ndarray, t: np.ndarray, parents: np.ndarray, joints: np.ndarray
     return world_q, world_p
 
 
-def _toes_above_floor(q, t, parents, legs: list[Leg], floor: float, up: int, chain: np.ndarray) -> np.ndarray:
+def toes_above_floor(q, t, parents, legs: list[Leg], floor: float, up: int, chain: np.ndarray) -> np.ndarray:
     """``q`` with each toe joint (an ankle without one) turned so that no joint below it is
     under ``floor``: such a joint is put on the floor, turned about the toe in the vertical
-    plane of its bone (``chain``: :func:`_chain_joints`, the joints whose positions it needs)."""
-    world_q, world_p = _fk_of(q, t, parents, chain)
+    plane of its bone (``chain``: :func:`chain_joints`, the joints whose positions it needs)."""
+    world_q, world_p = fk_of(q, t, parents, chain)
     for leg in legs:
         pivot = leg.toe if leg.toe >= 0 else leg.ankle  # without a toe: the foot's own End Site
         for d in descendants(parents, pivot):
@@ -435,7 +390,7 @@ def _toes_above_floor(q, t, parents, legs: list[Leg], floor: float, up: int, cha
             turn = np.where(low[:, None], _swing(bone, lifted), [1.0, 0.0, 0.0, 0.0])
             w_pivot = quat_mul(turn, world_q[:, pivot])
             q[:, pivot] = quat_mul(quat_conjugate(world_q[:, parents[pivot]]), w_pivot)
-            world_q, world_p = _fk_of(q, t, parents, chain)
+            world_q, world_p = fk_of(q, t, parents, chain)
     return q
 
 
@@ -456,8 +411,9 @@ def knee_hinge_bend(world_q: np.ndarray, world_p: np.ndarray, leg: Leg, u: np.nd
     return _unit(np.cross(u, quat_rotate(thigh, np.broadcast_to(axis, normal.shape))))
 
 
-def _two_bone(q, world_q, world_p, parents, leg: Leg, ankle_target, toe_target, up, toe_level):
-    """Local rotations of hip, knee and ankle of one leg placed on its targets (see :func:`place_legs`)."""
+def two_bone(q, world_q, world_p, parents, leg: Leg, ankle_target, toe_target, up, toe_level, hinge=HINGE_SHARE):
+    """Local rotations of hip, knee and ankle of one leg placed on its targets (see :func:`place_legs`);
+    ``hinge``: the share of the knee's hinge in its bend direction (0: the solved knee's own plane)."""
     hip, knee, ankle = world_p[:, leg.hip], world_p[:, leg.knee], world_p[:, leg.ankle]
     a = np.linalg.norm(knee - hip, axis=-1, keepdims=True)
     b = np.linalg.norm(ankle - knee, axis=-1, keepdims=True)
@@ -468,7 +424,7 @@ def _two_bone(q, world_q, world_p, parents, leg: Leg, ankle_target, toe_target, 
     # (decides where the solved leg is nearly straight, see knee_hinge_bend)
     along = _unit(ankle - hip)
     bend = (knee - hip) - np.sum((knee - hip) * along, -1, keepdims=True) * along
-    bend = bend + HINGE_SHARE * a * knee_hinge_bend(world_q, world_p, leg, u)
+    bend = bend + hinge * a * knee_hinge_bend(world_q, world_p, leg, u)
     v = _unit(bend - np.sum(bend * u, -1, keepdims=True) * u)
     cos = np.clip((a ** 2 + d ** 2 - b ** 2) / (2 * a * d), -1.0, 1.0)
     new_knee = hip + a * (cos * u + np.sqrt(1.0 - cos ** 2) * v)

@@ -458,9 +458,8 @@ def _solve(setup: Setup, q0: np.ndarray, terms, rot_terms, method: str, iteratio
                  terms.up, terms.target_contacts.fps, terms.floor, body_weight(setup, terms))
         q, t, _ = place_legs(q, t, *place)
         compiled = 0.0
-        if CONTACT_ITERATIONS:  # ... the body re-fits the source around the planted feet, and again
+        if CONTACT_ITERATIONS:  # ... the body re-fits the source around them, and the legs snap back
             q, t, phase = contact_phase(setup, terms, legs, q, t, problem, CONTACT_ITERATIONS)
-            q, t, _ = place_legs(q, t, *place)
             compiled = phase.compile_s
         solution = dataclasses.replace(solution, compile_s=solution.compile_s + compiled,
                                        run_s=solution.run_s + time.perf_counter() - began - compiled)
