@@ -36,7 +36,7 @@ import numpy as np
 from usdmotion.kinematics import fk_arrays
 from usdmotion.ops.contacts.detect import runs
 from usdmotion.ops.retarget.hierarchy import ancestor_matrix
-from usdmotion.ops.retarget.leg_reach import REACH, hip_spikes, leg_reach, lower_root, root_drop
+from usdmotion.ops.retarget.leg_reach import REACH, leg_reach, lower_root, root_drop, with_hip_spikes
 from usdmotion.rotations import quat_conjugate, quat_mul, quat_normalize, quat_rotate
 from usdmotion.skeleton_names import descendants
 
@@ -332,7 +332,7 @@ def place_legs(q: np.ndarray, t: np.ndarray, parents: np.ndarray, anchor: int, l
     planted = within_reach(planted, contact, legs, hips, reach, up, body_weight)
     points = planted[:, [leg.ankle_c for leg in legs]]
     drop = root_drop(np.where(flat[..., None], hips, points), reach, points, up, fps)
-    drop = drop + np.where(drop > 0, hip_spikes(hips[..., up].mean(axis=1)), 0.0)
+    drop = with_hip_spikes(drop, hips, up)
     world_p = lower_root(t, world_q, world_p, parents, anchor, drop, up)
     targets = [foot_targets(world_p, leg, planted, contact, level, up, r, FADE_S * fps) for leg, r in zip(legs, reach)]
     for leg, (ankle_target, toe_target, _) in zip(legs, targets):

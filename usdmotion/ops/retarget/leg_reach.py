@@ -49,6 +49,13 @@ def hip_spikes(height: np.ndarray) -> np.ndarray:
     return np.maximum(height - median, 0.0)
 
 
+
+def with_hip_spikes(drop: np.ndarray, hips: np.ndarray, up: int) -> np.ndarray:
+    """``drop (F,)`` plus :func:`hip_spikes` of the hips' mean height (``hips (F, L, 3)``) where the
+    root comes down at all: a one-frame spike of the hips then leaves the root, not the knees."""
+    return drop + np.where(drop > 0, hip_spikes(hips[..., up].mean(axis=1)), 0.0)
+
+
 def leg_reach(world_p: np.ndarray, legs: list) -> np.ndarray:
     """``(L,)`` each leg's hip-to-ankle length (thigh + shin, mean over frames of ``world_p (F, J, 3)``;
     ``legs``: :class:`~usdmotion.ops.retarget.leg_ik.Leg`)."""

@@ -7,7 +7,8 @@ few millimetres. :func:`snap_legs` moves each leg back onto the IK's points by t
 can: the ankle and toe targets are the phase's own joints moved towards the IK's by the
 phase's own contact weights (1 on contact frames, fading out over ``CONTACT_FADE_S``), a
 toe-only contact keeps the ankle on the sphere of the foot's length about the toe; the root
-comes down only where a target lies beyond a leg's reach; the two-bone IK keeps each knee
+comes down only where a target lies beyond a leg's reach (and by a hip spike more there, as in
+the leg IK); the two-bone IK keeps each knee
 in the phase's own bend plane. Running the whole leg IK again instead (its targets, fixed
 points moved within reach and knee-hinge rule from scratch) undid part of the phase's
 re-fit: joint-position RMS 0.92 against 0.95 cm on walk → legs 0.8×, 1.01 against 1.03 on
@@ -19,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from usdmotion.ops.retarget.leg_ik import Leg, chain_joints, fk_of, nearness, toes_above_floor, two_bone, up_to_level
-from usdmotion.ops.retarget.leg_reach import leg_reach, lower_root, root_drop
+from usdmotion.ops.retarget.leg_reach import leg_reach, lower_root, root_drop, with_hip_spikes
 
 
 def snap_legs(q: np.ndarray, t: np.ndarray, parents: np.ndarray, anchor: int, legs: list[Leg], held: np.ndarray,
@@ -51,7 +52,8 @@ def snap_legs(q: np.ndarray, t: np.ndarray, parents: np.ndarray, anchor: int, le
             toe_level = level[leg.toe_c]
         targets.append((ankle, toe, toe_level))
     ankles = np.stack([ankle for ankle, _, _ in targets], axis=1)
-    drop = root_drop(world_p[:, [leg.hip for leg in legs]], leg_reach(world_p, legs), ankles, up, fps)
+    hips = world_p[:, [leg.hip for leg in legs]]
+    drop = with_hip_spikes(root_drop(hips, leg_reach(world_p, legs), ankles, up, fps), hips, up)
     world_p = lower_root(t, world_q, world_p, parents, anchor, drop, up)
     for leg, (ankle, toe, toe_level) in zip(legs, targets):
         q = two_bone(q, world_q, world_p, parents, leg, ankle, toe, up, toe_level, hinge=0.0)
