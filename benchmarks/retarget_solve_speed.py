@@ -33,8 +33,8 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import REPO, SHARED_DATA, print_table, write_results  # noqa: E402
-from retarget_contacts import PAIRS, read, scaled_legs  # noqa: E402
+from _common import REPO, print_table, write_results  # noqa: E402
+from retarget_contacts import load_pair, pairs_with_data  # noqa: E402
 
 STAGES = ("prepare", "_choose_init", "solve", "aim_single_points", "place_legs", "unmapped_rules",
           "continuous_hemisphere", "quality", "build")
@@ -102,21 +102,9 @@ def main(argv=None) -> int:
     enable_compilation_cache()
     seconds, captured = defaultdict(float), {}
     _instrument(pipeline, seconds, captured)
-    wanted = [w.strip().lower() for w in args.pairs.split(",") if w.strip()]
     rows = []
-    for label, (path, kw, first, stop), target_spec, target_kw in PAIRS:
-        if wanted and not any(w in label.lower() for w in wanted):
-            continue
-        if isinstance(target_spec, str) and not (SHARED_DATA / target_spec).exists() or \
-                not (SHARED_DATA / path).exists():
-            print(f"skip {label}: data not found under {SHARED_DATA}")
-            continue
-        source = read(path, (first, stop), **kw)
-        options = {}
-        if isinstance(target_spec, float):
-            target, options = scaled_legs(source, target_spec), {"lengths": "target", "root_scale": "legs"}
-        else:
-            target = read(target_spec, **target_kw)
+    for label, source_spec, target_spec, target_kw in pairs_with_data(args.pairs):
+        source, target, path, _, options = load_pair(source_spec, target_spec, target_kw)
         contacts = detect_contacts(source, source=path)
         call = functools.partial(pipeline.retarget, source, target, contacts=contacts, source_path=path, **options)
         call()  # compiles

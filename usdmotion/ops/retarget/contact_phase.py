@@ -48,8 +48,8 @@ UPPER_BODY_PRIOR: float | None = None
 
 def contact_phase(setup, terms, legs, q: np.ndarray, t: np.ndarray, problem: Problem, iterations: int):
     """``(q, t, Solution)``: the LM solve of ``problem`` (the plain solve's) again from the
-    leg IK's result ``q, t`` (anchor world-placed) for ``iterations`` iterations, every contact joint held where the IK put
-    it on its contact frames (weight :data:`CONTACT_WEIGHT`, fading out around them): the
+    leg IK's result ``q, t`` (anchor world-placed) for ``iterations`` iterations, every contact
+    joint held where the IK put it on its contact frames (weight :data:`CONTACT_WEIGHT`, fading out around them): the
     root, the hips and the ``legs`` (:class:`~usdmotion.ops.retarget.leg_ik.Leg`) re-fit
     the source given the planted feet (what the root's drop and the IK's knees cost); where
     :data:`UPPER_BODY_PRIOR` is set (off by default) the upper body turns too, held near its

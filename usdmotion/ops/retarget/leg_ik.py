@@ -16,9 +16,9 @@ frames at once in float64 NumPy (no per-frame loop):
 2. **Reach**: where a foot planted flat (ankle and toe down) lies beyond the leg's length
    from the solved hip, the root comes down (:func:`~usdmotion.ops.retarget.leg_reach.root_drop`)
    by the least amount that reaches it, smoothed over ``leg_reach.DROP_WINDOW_S`` (a running
-   maximum, then a moving mean of it: never less than needed, never a step). A held ankle target still out of reach
-   from the lowered hip is raised (only the ankle down: straight up; with the toe down:
-   by turning the foot about the toe's point — the heel lifts).
+   maximum, then a moving mean of it: never less than needed, never a step). A held ankle
+   target still out of reach from the lowered hip is raised (only the ankle down: straight
+   up; with the toe down: by turning the foot about the toe's point — the heel lifts).
 3. **Two-bone IK** (:func:`place_legs`): the knee stays in the plane of the solved leg (its
    bend direction, plus a little of the knee's hinge, which decides where the solved leg
    is nearly straight: :func:`knee_hinge_bend`), the hip
