@@ -10,10 +10,12 @@ For every pair of ``benchmarks/retarget_contacts.py`` (issue 17's ≥ 10,000 fra
    iterations. The benchmark's frames/s count the solve and the leg IK only.
 2. **Solve variants**, timed in turns in one process (min of ``--repeat`` runs each, so the
    machine's load hits them alike): ``all joints`` (forward kinematics over every joint of
-   the rig, as before ``solve.needed_joints``), ``needed joints`` (the default) and
-   ``nielsen`` (needed joints, Nielsen's damping update). Columns: ms, frames/s, ratio to
-   ``all joints``, LM iterations (deterministic), the summed final loss and the largest
-   joint-position difference from ``all joints`` (target units).
+   the rig, as before ``solve.needed_joints``), ``needed joints``, ``nielsen`` (needed
+   joints, Nielsen's damping update), all three on one CPU device, and ``nielsen, all CPU
+   devices`` (the default: the frames split over one JAX CPU device per core,
+   ``solve.frame_shards``). Columns: ms, frames/s, ratio to ``all joints``, LM iterations,
+   the summed final loss and the largest joint-position difference from ``all joints``
+   (target units); the last table gives the default's speed-up over ``nielsen`` on one device.
 
 Run: ``python benchmarks/retarget_solve_speed.py [--pairs TEXT[,TEXT...]] [--repeat N]``.
 Writes ``benchmarks/results/retarget_solve_speed.json``.
@@ -66,13 +68,14 @@ def _variants(solve_module, args, repeat: int) -> dict:
     problem, q0, t0, targets = args[:4]
     every = lambda p: (p, np.ones(len(p.parents), bool))  # noqa: E731
     needed = solve_module.needed_joints
-    variants = {"all joints": (every, "fixed"), "needed joints": (needed, "fixed"), "nielsen": (needed, "nielsen")}
+    variants = {"all joints": (every, "fixed", 1), "needed joints": (needed, "fixed", 1),
+                "nielsen": (needed, "nielsen", 1), "nielsen, all CPU devices": (needed, "nielsen", None)}
     best, results = defaultdict(lambda: np.inf), {}
     try:
         for _ in range(repeat + 1):  # the first round compiles
-            for name, (cut, damping) in variants.items():
+            for name, (cut, damping, shards) in variants.items():
                 solve_module.needed_joints = cut
-                sol = solve_module.solve(problem, q0, t0, targets, damping=damping)
+                sol = solve_module.solve(problem, q0, t0, targets, damping=damping, shards=shards)
                 best[name] = min(best[name], sol.run_s) if name in results else np.inf
                 results[name] = sol
     finally:
@@ -95,11 +98,12 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     from usdmotion.ops.contacts import detect_contacts
     from usdmotion.ops.retarget import pipeline
-    from usdmotion.ops.retarget.jax_runtime import device_description, enable_compilation_cache
+    from usdmotion.ops.retarget.jax_runtime import device_description, enable_compilation_cache, use_cpu_cores
     from usdmotion.ops.retarget.solve import needed_joints
 
     solve_module = importlib.import_module("usdmotion.ops.retarget.solve")
     enable_compilation_cache()
+    cpu_devices = use_cpu_cores()
     seconds, captured = defaultdict(float), {}
     _instrument(pipeline, seconds, captured)
     rows = []
@@ -135,7 +139,15 @@ def main(argv=None) -> int:
                 ["pair", "variant", "ms", "frames/s", "ratio", "LM it", "loss", "max position diff"],
                 [[r["pair"], name, f"{v['ms']:.1f}", f"{v['fps']:,.0f}", f"{v['ratio']:.2f}", v["iterations"],
                   f"{v['loss']:.6g}", f"{v['max_position_diff']:.3g}"] for r in rows for name, v in r["variants"].items()])
-    path = write_results("retarget_solve_speed", {"device": device_description(), "rows": rows})
+    print()
+    print_table("The default (frames split over every CPU device) against one device, same run",
+                ["pair", "ms one device", "ms all devices", "speed-up", "LM it (one / all)", "chunk"],
+                [[r["pair"], f"{one['ms']:.1f}", f"{every['ms']:.1f}", f"{one['ms'] / every['ms']:.2f}x",
+                  f"{one['iterations']} / {every['iterations']}", r["chunk"]]
+                 for r in rows
+                 for one, every in [(r["variants"]["nielsen"], r["variants"]["nielsen, all CPU devices"])]])
+    path = write_results("retarget_solve_speed", {"device": device_description(), "cpu_devices": cpu_devices,
+                                                  "rows": rows})
     print(f"\nwrote {path.relative_to(REPO)}")
     return 0
 

@@ -28,6 +28,16 @@ def shared_file():
 
 
 @pytest.fixture(autouse=True, scope="session")
+def _jax_on_every_core():
+    """JAX with one CPU device per core before any test computes with it, as in a
+    command-line run (the LM solve splits its frames over them; test_retarget_shards.py)."""
+    from usdmotion.ops.retarget.jax_runtime import use_cpu_cores
+
+    use_cpu_cores()
+    yield
+
+
+@pytest.fixture(autouse=True, scope="session")
 def _headless_rendering():
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
     yield

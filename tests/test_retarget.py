@@ -135,7 +135,8 @@ def test_tree_lm_step_equals_the_dense_solve_of_the_autodiff_jacobian(trans):
     import jax.numpy as jnp
     from lm_reference import reference_lm_step
 
-    from usdmotion.ops.retarget.solve import Problem, make_apply, make_dense_step, make_jacobian, make_residuals
+    from usdmotion.ops.retarget.dense_step import make_dense_step, make_jacobian
+    from usdmotion.ops.retarget.solve import Problem, make_apply, make_residuals
     from usdmotion.ops.retarget.tree_step import make_tree_step
 
     problem, q, t, targets = small_problem()

@@ -48,7 +48,8 @@ def test_new_terms_gradient_matches_finite_differences(prior):
 
     from usdmotion.ops.retarget.hierarchy import ancestor_matrix
     from usdmotion.ops.retarget.rotation_terms import make_rotation_terms as make_smoothness
-    from usdmotion.ops.retarget.solve import make_apply, make_jacobian, make_residuals
+    from usdmotion.ops.retarget.dense_step import make_jacobian
+    from usdmotion.ops.retarget.solve import make_apply, make_residuals
 
     problem, q, t, targets, weights, floor = contact_problem(prior)
     with jax.enable_x64(True):
@@ -91,7 +92,8 @@ def test_tree_step_with_contact_and_floor_points_equals_the_dense_solve():
     import jax.numpy as jnp
     from lm_reference import reference_lm_step
 
-    from usdmotion.ops.retarget.solve import make_apply, make_dense_step, make_residuals
+    from usdmotion.ops.retarget.dense_step import make_dense_step
+    from usdmotion.ops.retarget.solve import make_apply, make_residuals
     from usdmotion.ops.retarget.tree_step import make_tree_step
 
     problem, q, t, targets, weights, floor = contact_problem(False)

@@ -5,6 +5,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+import numpy as np
+
 
 def device_description() -> str:
     """The device JAX computes on, e.g. ``"cpu"`` or ``"gpu (NVIDIA H100)"``."""
@@ -13,6 +15,32 @@ def device_description() -> str:
     device = jax.devices()[0]
     kind = getattr(device, "device_kind", "")
     return device.platform + (f" ({kind})" if kind and kind.lower() != device.platform else "")
+
+
+def use_cpu_cores() -> int:
+    """Give JAX one CPU device per CPU this process may run on, so the LM solve can run its
+    frames on all of them (:func:`usdmotion.ops.retarget.solve.solve` splits a chunk's frames
+    over the devices). Returns the CPU devices JAX has.
+
+    XLA:CPU runs one computation's small per-frame operations on one core (the solve used
+    1.1–1.25 of this machine's 2 cores). The count follows the CPUs, not
+    ``USDMOTION_THREADS``: the split decides the float32 rounding of the result, so a batch
+    worker limited to one thread writes the same bytes as the single-file command on the
+    same machine. It can only be set before JAX's first computation: a process that already
+    ran one, or a count the user set (``jax_num_cpu_devices``,
+    ``XLA_FLAGS=--xla_force_host_platform_device_count``), keeps what it has."""
+    import jax
+    from jax._src import xla_bridge
+
+    configured = jax.config.jax_num_cpu_devices > 0 or "force_host_platform_device_count" in os.environ.get(
+        "XLA_FLAGS", "")
+    if not configured and not xla_bridge.backends_are_initialized():
+        try:
+            cpus = len(os.sched_getaffinity(0))
+        except AttributeError:  # pragma: no cover - not Linux
+            cpus = os.cpu_count() or 1
+        jax.config.update("jax_num_cpu_devices", max(1, cpus))
+    return len(jax.devices("cpu"))
 
 
 def enable_compilation_cache() -> str | None:
@@ -38,3 +66,40 @@ def enable_compilation_cache() -> str | None:
     jax.config.update("jax_compilation_cache_dir", str(folder))
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
     return str(folder)
+
+
+def frame_blocks(shards: int):
+    """``args -> args`` placed for a ``shards``-device LM call: arrays split into blocks of
+    frames, scalars on every device (unchanged for one device)."""
+    if shards == 1:
+        return lambda args: args
+    import jax
+    from jax.sharding import NamedSharding, PartitionSpec
+
+    mesh = frame_mesh(shards)
+    return lambda args: [jax.device_put(a, NamedSharding(mesh, PartitionSpec("frames") if a.ndim else PartitionSpec()))
+                         for a in args]
+
+
+def frame_mesh(shards: int):
+    """The 1-D device mesh ``("frames",)`` over the first ``shards`` CPU devices."""
+    import jax
+    from jax.sharding import Mesh
+
+    return Mesh(np.array(jax.devices("cpu")[:shards]), ("frames",))
+
+
+def frame_shards(chunk: int) -> int:
+    """CPU devices a chunk of ``chunk`` frames is split over: every CPU device JAX has
+    (:func:`use_cpu_cores`) while a block keeps at least
+    :data:`MIN_BLOCK_FRAMES` frames; 1 when JAX computes on an accelerator (one device does a
+    chunk in one go)."""
+    import jax
+
+    if jax.default_backend() != "cpu":
+        return 1
+    return max(1, min(len(jax.devices("cpu")), chunk // MIN_BLOCK_FRAMES))
+
+
+#: Fewest frames per device block of a sharded LM call (smaller chunks run on one device).
+MIN_BLOCK_FRAMES = 32

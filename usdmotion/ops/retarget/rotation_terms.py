@@ -15,14 +15,19 @@ from usdmotion.ops.retarget.problem import Problem
 from usdmotion.rotations import quat_log, quat_mul, quat_normalize
 
 
-def make_rotation_terms(problem: Problem):
+def make_rotation_terms(problem: Problem, axis: str | None = None, shards: int = 1):
     """``(world_q (B,J,4), mask (B,)) -> (rot_r (B,R,3), rot_w (B,R), loss (B,))``: the
     temporal term of the rotation joints. ``rot_r = log(W_j(f) · M_j(f)⁻¹)`` (world frame,
     radians) with ``M_j(f)`` the normalised quaternion mean of ``W_j(f−1)`` and
     ``W_j(f+1)`` (hemisphere-aligned): a second difference, so constant angular velocity
     costs nothing and a flip costs a lot. ``mask`` is 1 on frames whose both neighbours are
     real consecutive frames of the batch. Within one LM iteration the neighbours are held
-    (a Jacobi sweep over time; they move at the next iteration)."""
+    (a Jacobi sweep over time; they move at the next iteration).
+
+    ``axis``, ``shards``: inside a ``shard_map`` over ``shards`` consecutive blocks of frames
+    (mapped axis ``axis``), the first and last frame of a block take their neighbours from
+    the blocks beside it, so the term is the one of the whole batch."""
+    import jax
     import jax.numpy as jnp
 
     rot_j = jnp.asarray(problem.rot_joints)
@@ -32,8 +37,12 @@ def make_rotation_terms(problem: Problem):
 
     def midpoints(world_q):
         wq = world_q[:, rot_j]
-        prev = jnp.concatenate([wq[:1], wq[:-1]], axis=0)
-        nxt = jnp.concatenate([wq[1:], wq[-1:]], axis=0)
+        before, after = wq[:1], wq[-1:]
+        if axis is not None:  # the blocks' edge frames (zeros at the batch's ends, where the mask is 0)
+            before = jax.lax.ppermute(after, axis, [(k, k + 1) for k in range(shards - 1)])
+            after = jax.lax.ppermute(wq[:1], axis, [(k + 1, k) for k in range(shards - 1)])
+        prev = jnp.concatenate([before, wq[:-1]], axis=0)
+        nxt = jnp.concatenate([wq[1:], after], axis=0)
         align = lambda a: a * jnp.where(jnp.sum(a * wq, -1, keepdims=True) < 0, -1.0, 1.0)  # noqa: E731
         return quat_normalize(align(prev) + align(nxt))
 

@@ -1,6 +1,8 @@
 """JAX solvers for step 2 of retargeting (rotations), all frames at once.
 
-This is the only module of the retargeting code that imports JAX. It works in
+The solve loop and its residuals live here; the steps and terms it composes are in
+``tree_step``, ``dense_step``, ``rotation_terms``, ``lm_model`` and ``adam``, and
+``jax_runtime`` picks the devices. It works in
 **float32** (JAX's default, what GPUs are fast at) on whatever device JAX picks; inputs
 are centred per frame on the source root so float32 keeps ~1e-7 relative precision of
 the body size rather than of the distance travelled.
@@ -17,8 +19,12 @@ Methods:
   ``∂p_m/∂ω_j = [p_j − p_m]_×`` for every mapped descendant ``m`` of ``j`` (and the
   identity for free translations). The damped normal equations are solved on the
   joint tree in O(joints) (:mod:`usdmotion.ops.retarget.tree_step`); the dense Cholesky
-  form is kept as a reference (``linear="dense"``). Steps are accepted per frame only
-  when they lower the loss, so the current iterate is always the best one seen.
+  form is kept as a reference (``linear="dense"``, :mod:`usdmotion.ops.retarget.dense_step`).
+  On a CPU a chunk's frames are split into consecutive blocks, one per JAX CPU device
+  (one per core, ``jax_runtime.use_cpu_cores``), run in lockstep inside ``shard_map``:
+  XLA:CPU would run the whole chunk's small per-frame operations on one core. Steps are
+  accepted per frame only when they lower the loss, so the current iterate is always the
+  best one seen.
 * ``adam``: the paper's reference: Adam (lr 0.1, 500 iterations, Kingma–Ba defaults)
   on the Euler angles (radians, each joint's channel order) of every optimised joint,
   for every frame separately — vmapped, which is mathematically the same as a loop
@@ -39,10 +45,11 @@ import numpy as np
 from usdmotion.kinematics import fk_arrays
 from usdmotion.ops.retarget.hierarchy import ancestor_matrix
 from usdmotion.ops.retarget.problem import (ADAM_ITERATIONS, ADAM_LR, LM_ATOL, LM_DAMPING_UPDATE,
-                                            LM_DAMPING_UPDATES, LM_DIAG_FLOOR, LM_DOWN, LM_ITERATIONS, LM_LAMBDA0,
-                                            LM_LAMBDA_MAX, LM_LAMBDA_MIN, LM_NULL_DAMPING, LM_RTOL, LM_RTOL_TOTAL,
-                                            LM_UP, Problem, masks)
+                                            LM_DAMPING_UPDATES, LM_DOWN, LM_ITERATIONS, LM_LAMBDA0, LM_LAMBDA_MAX,
+                                            LM_LAMBDA_MIN, LM_RTOL, LM_RTOL_TOTAL, LM_UP, Problem)
 from usdmotion.ops.retarget.adam import make_adam
+from usdmotion.ops.retarget.dense_step import make_dense_step
+from usdmotion.ops.retarget.jax_runtime import frame_blocks, frame_mesh, frame_shards
 from usdmotion.ops.retarget.lm_model import make_model_gain
 from usdmotion.ops.retarget.rotation_terms import make_rotation_terms
 from usdmotion.ops.retarget.tree_step import make_tree_step
@@ -52,48 +59,6 @@ from usdmotion.rotations import (quat_exp, quat_mul, quat_normalize, quat_rotate
 
 # JAX (and optax) are imported inside the functions that use them: a deliberately deferred
 # heavy dependency (seconds of start-up), needed only once a solve runs.
-
-def _skew(a):
-    """``(..., 3, 3)`` cross-product matrices ``[a]_×`` of ``a (..., 3)``."""
-    import jax.numpy as jnp
-
-    z = jnp.zeros_like(a[..., 0])
-    x, y, w = a[..., 0], a[..., 1], a[..., 2]
-    return jnp.stack([jnp.stack([z, -w, y], -1), jnp.stack([w, z, -x], -1), jnp.stack([-y, x, z], -1)], -2)
-
-
-def make_jacobian(problem: Problem):
-    """``(world_p (B,J,3), w=None (B,P)) -> J (B, 3P, P')``: the analytic Jacobian of the
-    weighted residuals ``√w_m (p_m − p̂_m)`` of the points :attr:`Problem.points` with
-    respect to world-frame rotation increments ``ω_j`` of the rotation joints
-    (``∂p_m/∂ω_j = [p_j − p_m]_×`` for descendants ``m``) and world-frame increments of
-    the free translations (identity on their subtree); ``w``: per-frame weights (default
-    the problem's static ones)."""
-    import jax.numpy as jnp
-
-    mapped = jnp.asarray(problem.points)
-    default_w = jnp.asarray(np.r_[problem.point_weights(), np.zeros(len(problem.floor_joints))], jnp.float32)
-    rot_j = jnp.asarray(problem.rot_joints)
-    rot_mask, trans_mask = (jnp.asarray(m) for m in masks(problem))
-    n_rot, n_trans, n_map = len(problem.rot_joints), len(problem.trans_joints), len(problem.points)
-    eye3 = jnp.eye(3, dtype=jnp.float32)
-
-    def jacobian(world_p, w=None):
-        batch = world_p.shape[0]
-        sqrt_w = jnp.sqrt(jnp.broadcast_to(default_w if w is None else w, (batch, n_map)).astype(world_p.dtype))
-        blocks = []
-        if n_rot:
-            a = world_p[:, None, rot_j] - world_p[:, mapped, None]  # (B, M, R, 3)
-            jr = _skew(a) * rot_mask[None, :, :, None, None]  # (B, M, R, 3, 3)
-            blocks.append(jnp.transpose(jr, (0, 1, 3, 2, 4)).reshape(batch, 3 * n_map, 3 * n_rot))
-        if n_trans:
-            jt = trans_mask[:, None, :, None] * eye3[None, :, None, :]  # (M, 3, T, 3)
-            blocks.append(jnp.broadcast_to(jt.reshape(1, 3 * n_map, 3 * n_trans), (batch, 3 * n_map, 3 * n_trans)))
-        jac = jnp.concatenate(blocks, axis=-1) if len(blocks) > 1 else blocks[0]
-        return jac * jnp.repeat(sqrt_w, 3, axis=-1)[:, :, None]
-
-    return jacobian
-
 
 def make_apply(problem: Problem):
     """``(q, t, world_q, step (B, P)) -> (q, t)``: apply world-frame increments on the manifold.
@@ -173,34 +138,10 @@ def single_point_joints(problem: Problem) -> tuple[np.ndarray, np.ndarray, np.nd
     return tuple(np.array([r[i] for r in rows], np.int64) for i in range(3))  # type: ignore[return-value]
 
 
-def make_dense_step(problem: Problem):
-    """``(world_p, r, lam, w=None) -> step``: the same LM step as :func:`make_tree_step`
-    (point residuals only) from the explicit Jacobian, ``JᵀWJ`` and a batched Cholesky
-    factorisation (reference)."""
-    import jax
-    import jax.numpy as jnp
-
-    jacobian = make_jacobian(problem)
-    default_w = jnp.asarray(np.r_[problem.point_weights(), np.zeros(len(problem.floor_joints))], jnp.float32)
-
-    def step(world_p, r, lam, w=None):
-        w = jnp.broadcast_to(default_w if w is None else w, r.shape[:2]).astype(r.dtype)
-        jac = jacobian(world_p, w)
-        rw = (r * jnp.sqrt(w)[..., None]).reshape(r.shape[0], -1)
-        h, g = jnp.einsum("bri,brj->bij", jac, jac), jnp.einsum("bri,br->bi", jac, rw)
-        diag = jnp.diagonal(h, axis1=1, axis2=2).reshape(h.shape[0], -1, 3)
-        mean = jnp.mean(diag, axis=-1, keepdims=True)
-        damp = lam[:, None, None] * (diag + LM_DIAG_FLOOR * mean + 1e-12) + LM_NULL_DAMPING * mean
-        damp = damp.reshape(h.shape[0], -1)
-        damped = h + damp[:, :, None] * jnp.eye(h.shape[-1], dtype=h.dtype)
-        return -jax.scipy.linalg.cho_solve((jnp.linalg.cholesky(damped), True), g[..., None])[..., 0]
-
-    return step
-
-
 def make_lm_step(problem: Problem, linear: str = "tree"):
     """``(world_p, r, lam, w=None, rot_r=None, rot_w=None) -> step (B, P)``: the LM step
-    (``linear``: ``"tree"`` or ``"dense"``, which takes no rotation residuals) with the twist of every :func:`single_point_joints` joint about the line
+    (``linear``: ``"tree"`` or ``"dense"``, which takes no rotation residuals) with the
+    twist of every :func:`single_point_joints` joint about the line
     to its one mapped descendant removed: the loss cannot see it, so left in, float32
     noise would make it drift over the iterations and flip bones by up to 180° between
     frames. The twist then stays where the (smooth) initial guess put it."""
@@ -225,7 +166,7 @@ def make_lm_step(problem: Problem, linear: str = "tree"):
     return lm_step
 
 
-def _make_lm(problem: Problem, linear: str = "tree", damping: str = LM_DAMPING_UPDATE):
+def _make_lm(problem: Problem, linear: str = "tree", damping: str = LM_DAMPING_UPDATE, shards: int = 1):
     """A jitted ``(q, t, targets, w, floor, smooth_mask, iterations) -> (q, t, loss (B,),
     initial loss (B,), iterations run)`` LM solver (at most ``iterations``, a runtime int32
     scalar so one compiled function serves every cap; stops early when every frame has
@@ -236,9 +177,16 @@ def _make_lm(problem: Problem, linear: str = "tree", damping: str = LM_DAMPING_U
     ``linear``: ``"tree"`` (:func:`make_tree_step`, default) or ``"dense"``
     (:func:`make_dense_step`, without the temporal term); both solve the same damped system.
     ``damping``: the λ update rule (:data:`usdmotion.ops.retarget.problem.LM_DAMPING_UPDATES`).
+    ``shards``: CPU devices the frames are split over (equal consecutive blocks, one per
+    device, ``B`` a multiple of it). The blocks run in lockstep: the stop tests and the
+    temporal term's neighbours span the whole batch, so every frame takes the steps it
+    would take in one block (the float sums aside).
     """
     import jax
     import jax.numpy as jnp
+
+    axis = "frames" if shards > 1 else None
+    total = (lambda x: jax.lax.psum(x, axis)) if axis else (lambda x: x)  # noqa: E731
 
     evaluate = make_residuals(problem)
     apply = make_apply(problem)
@@ -247,7 +195,7 @@ def _make_lm(problem: Problem, linear: str = "tree", damping: str = LM_DAMPING_U
     # contact and floor terms weigh 100–1000× the positions: rejected steps are common while
     # λ adapts, so they must not count as convergence
     stiff = bool(len(problem.contact_joints) or len(problem.floor_joints))
-    smoothness = make_rotation_terms(problem) if smoothing else None
+    smoothness = make_rotation_terms(problem, axis, shards) if smoothing else None
     nielsen = damping == "nielsen"
     model_gain = make_model_gain(problem) if nielsen else None
     rot_j = jnp.asarray(problem.rot_joints)
@@ -265,7 +213,7 @@ def _make_lm(problem: Problem, linear: str = "tree", damping: str = LM_DAMPING_U
         def cond(carry):
             i, loss, stall, flat = carry[0], carry[6], carry[8], carry[9]
             frames_done = (stall >= 2) | (loss <= LM_ATOL * initial)
-            return (i < iterations) & ~jnp.all(frames_done) & (flat < 2)
+            return (i < iterations) & (total(jnp.sum(~frames_done)) > 0) & (flat < 2)
 
         def body(carry):
             i, q, t, world_q, world_p, r, loss, lam, stall, flat, w_all, nu = carry
@@ -288,7 +236,8 @@ def _make_lm(problem: Problem, linear: str = "tree", damping: str = LM_DAMPING_U
                 stall = jnp.where(gain > LM_RTOL, 0, stall + 1)
             pick = lambda new, old: jnp.where(ok.reshape((-1,) + (1,) * (new.ndim - 1)), new, old)  # noqa: E731
             new_loss = pick(loss2, loss)
-            total_gain = (jnp.sum(loss) - jnp.sum(new_loss)) / jnp.maximum(jnp.sum(loss), 1e-30)
+            before, after = total(jnp.sum(loss)), total(jnp.sum(new_loss))
+            total_gain = (before - after) / jnp.maximum(before, 1e-30)
             flat = jnp.where(total_gain < LM_RTOL_TOTAL, flat + 1, 0)
             if nielsen:  # ρ = actual / predicted reduction (see problem.LM_DAMPING_UPDATE)
                 rho = (loss - loss2) / jnp.maximum(predicted, 1e-30 * jnp.maximum(loss, 1e-30))
@@ -304,7 +253,15 @@ def _make_lm(problem: Problem, linear: str = "tree", damping: str = LM_DAMPING_U
                                                 jnp.int32(0), w_all, nu))
         return carry[1], carry[2], carry[6], initial, carry[0]
 
-    return jax.jit(solve)
+    if not axis:
+        return jax.jit(solve)
+    from jax.sharding import PartitionSpec
+
+    blocks = PartitionSpec(axis)
+    return jax.jit(jax.shard_map(solve, mesh=frame_mesh(shards), in_specs=(blocks,) * 6 + (PartitionSpec(),),
+                                 out_specs=(blocks,) * 4 + (PartitionSpec(),), check_vma=False))
+
+
 
 
 def evaluate_loss(r, w):
@@ -320,15 +277,15 @@ DAMPING = LM_DAMPING_UPDATE
 
 
 def _executable(problem: Problem, method: str, iterations: int, lr: float, args,
-                damping: str = LM_DAMPING_UPDATE) -> tuple[object, float]:
+                damping: str = LM_DAMPING_UPDATE, shards: int = 1) -> tuple[object, float]:
     """``(compiled function, seconds spent compiling)`` for these argument shapes (cached)."""
 
-    key = (problem.key(), method, None if method == "lm" else iterations, lr, damping,
+    key = (problem.key(), method, None if method == "lm" else iterations, lr, damping, shards,
            tuple((a.shape, str(a.dtype)) for a in args))
     if key in _EXECUTABLES:
         return _EXECUTABLES[key], 0.0
     start = time.perf_counter()
-    fn = _make_lm(problem, damping=damping) if method == "lm" else make_adam(problem, iterations, lr)
+    fn = _make_lm(problem, damping=damping, shards=shards) if method == "lm" else make_adam(problem, iterations, lr)
     compiled = fn.lower(*args).compile()
     if len(_EXECUTABLES) >= 32:
         _EXECUTABLES.pop(next(iter(_EXECUTABLES)))
@@ -383,7 +340,7 @@ class Solution:
 def solve(problem: Problem, q0: np.ndarray, t0: np.ndarray, targets: np.ndarray, method: str = "lm",
           iterations: int | None = None, chunk: int | None = None, lr: float = ADAM_LR,
           progress: Progress | None = None, weights: np.ndarray | None = None,
-          floor: np.ndarray | None = None, damping: str | None = None) -> Solution:
+          floor: np.ndarray | None = None, damping: str | None = None, shards: int | None = None) -> Solution:
     """Optimise rotations (and free translations) of all frames.
 
     Args:
@@ -404,11 +361,17 @@ def solve(problem: Problem, q0: np.ndarray, t0: np.ndarray, targets: np.ndarray,
         damping: LM's λ update, ``"fixed"`` or ``"nielsen"`` (default: the module setting
             :data:`DAMPING`, i.e. :data:`usdmotion.ops.retarget.problem.LM_DAMPING_UPDATE`;
             ``benchmarks/retarget_contacts.py --damping`` sets it to compare).
+        shards: LM only: CPU devices each chunk's frames are split over, in lockstep
+            (default :func:`usdmotion.ops.retarget.jax_runtime.frame_shards`: all of them on
+            a CPU, 1 on an accelerator); the result is the one-device result up to float32
+            rounding.
 
     LM solves every chunk of consecutive frames in one compiled call; the temporal term
     (``problem.smooth``) links neighbouring frames inside a chunk (not across chunks).
     """
+    from usdmotion.ops.retarget.jax_runtime import use_cpu_cores
 
+    use_cpu_cores()  # before JAX's first computation in this process, if this is it
     import jax
     import jax.numpy as jnp
 
@@ -433,6 +396,9 @@ def solve(problem: Problem, q0: np.ndarray, t0: np.ndarray, targets: np.ndarray,
     iterations = int(iterations if iterations is not None else (LM_ITERATIONS if method == "lm" else ADAM_ITERATIONS))
     n_frames = q0.shape[0]
     chunk = chunk or chunk_plan(n_frames, problem)[0]
+    shards = 1 if method != "lm" else shards or frame_shards(chunk)
+    chunk = -(-chunk // shards) * shards
+    place = frame_blocks(shards)
     theta0 = None
     if method == "adam":
         theta0 = np.zeros(q0.shape[:1] + (len(problem.rot_joints), 3))
@@ -450,7 +416,8 @@ def solve(problem: Problem, q0: np.ndarray, t0: np.ndarray, targets: np.ndarray,
             inner[1: stop - start - 1] = 1.0
             args += [jnp.asarray(weights[pad], jnp.float32), jnp.asarray(floor[pad], jnp.float32),
                      jnp.asarray(inner), jnp.int32(iterations)]
-        fn, seconds = _executable(problem, method, iterations, float(lr), args, damping)
+            args = place(args)
+        fn, seconds = _executable(problem, method, iterations, float(lr), args, damping, shards)
         compile_s += seconds
         began = time.perf_counter()
         result = jax.block_until_ready(fn(*args))

@@ -12,7 +12,7 @@ XLA on CPU runs batched products of tiny matrices slowly, so matrices here are l
 rows of entries, each entry a ``(nodes, frames)`` array (frames last) or a Python 0/1
 that costs nothing; XLA then sees only elementwise arithmetic, which it fuses and
 vectorises. Measured on the 31 → 18 joint CMU case: 2–3 µs per frame per step against
-15–17 µs for the batched Cholesky of ``JᵀJ`` (``solve.make_dense_step``).
+15–17 µs for the batched Cholesky of ``JᵀJ`` (``dense_step.make_dense_step``).
 """
 
 from __future__ import annotations
