@@ -276,6 +276,29 @@ _EXECUTABLES: dict = {}
 DAMPING = LM_DAMPING_UPDATE
 
 
+#: XLA options for the solvers' compiles on a CPU. The LM's loop body is ~15,000 lines of
+#: small elementwise HLO (the tree step's unrolled 6×6 algebra); XLA:CPU's fusion emitters
+#: took 16.5 s to compile it for 512 walk frames, the older loop emitters 10.0 s, and the
+#: compiled solve ran as fast (641 / 669 ms on one device, 481 / 479 ms on two; same loss),
+#: throwaway ``/tmp/exp/ctime3.py``. Compiling is most of a first retarget's time on a new rig.
+CPU_COMPILER_OPTIONS = {"xla_cpu_use_fusion_emitters": False}
+
+
+def compile_lowered(lowered):
+    """``lowered.compile()`` with :data:`CPU_COMPILER_OPTIONS` when JAX computes on a CPU
+    (plain ``compile()`` elsewhere, or if this jaxlib no longer knows an option)."""
+    import jax
+
+    if jax.default_backend() != "cpu" or not CPU_COMPILER_OPTIONS:
+        return lowered.compile()
+    try:
+        return lowered.compile(compiler_options=CPU_COMPILER_OPTIONS)
+    except Exception as exc:  # noqa: BLE001 - an unknown option is a jaxlib error type of its own
+        if "xla_cpu_use_fusion_emitters" not in str(exc):
+            raise
+        return lowered.compile()
+
+
 def _executable(problem: Problem, method: str, iterations: int, lr: float, args,
                 damping: str = LM_DAMPING_UPDATE, shards: int = 1) -> tuple[object, float]:
     """``(compiled function, seconds spent compiling)`` for these argument shapes (cached)."""
@@ -286,7 +309,7 @@ def _executable(problem: Problem, method: str, iterations: int, lr: float, args,
         return _EXECUTABLES[key], 0.0
     start = time.perf_counter()
     fn = _make_lm(problem, damping=damping, shards=shards) if method == "lm" else make_adam(problem, iterations, lr)
-    compiled = fn.lower(*args).compile()
+    compiled = compile_lowered(fn.lower(*args))
     if len(_EXECUTABLES) >= 32:
         _EXECUTABLES.pop(next(iter(_EXECUTABLES)))
     _EXECUTABLES[key] = compiled
