@@ -97,7 +97,6 @@ def _swing(bases, u, v) -> np.ndarray:
 def _aim(bases, origin, rays, targets) -> np.ndarray:
     """World rotation ``(F, 4)`` aiming rest vectors (joint frame) at target directions;
     ``bases[0]`` is the parent's world rotation."""
-    parent_q = bases[0]
     u = np.stack([v for _, v in rays])  # (R, 3) joint frame
     v = np.stack([targets[:, d] - origin for d, _ in rays], axis=1)  # (F, R, 3) world
     swing = _swing(bases, u.sum(axis=0), v.sum(axis=1))
