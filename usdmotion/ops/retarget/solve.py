@@ -49,7 +49,7 @@ from usdmotion.ops.retarget.problem import (ADAM_ITERATIONS, ADAM_LR, LM_ATOL, L
                                             LM_LAMBDA_MIN, LM_RTOL, LM_RTOL_TOTAL, LM_UP, Problem)
 from usdmotion.ops.retarget.adam import make_adam
 from usdmotion.ops.retarget.dense_step import make_dense_step
-from usdmotion.ops.retarget.jax_runtime import frame_blocks, frame_mesh, frame_shards
+from usdmotion.ops.retarget.jax_runtime import frame_blocks, frame_mesh, frame_shards, use_cpu_cores
 from usdmotion.ops.retarget.lm_model import make_model_gain
 from usdmotion.ops.retarget.rotation_terms import make_rotation_terms
 from usdmotion.ops.retarget.tree_step import make_tree_step
@@ -294,7 +294,7 @@ def compile_lowered(lowered):
     try:
         return lowered.compile(compiler_options=CPU_COMPILER_OPTIONS)
     except Exception as exc:  # noqa: BLE001 - an unknown option is a jaxlib error type of its own
-        if "xla_cpu_use_fusion_emitters" not in str(exc):
+        if not any(name in str(exc) for name in CPU_COMPILER_OPTIONS):
             raise
         return lowered.compile()
 
@@ -392,8 +392,6 @@ def solve(problem: Problem, q0: np.ndarray, t0: np.ndarray, targets: np.ndarray,
     LM solves every chunk of consecutive frames in one compiled call; the temporal term
     (``problem.smooth``) links neighbouring frames inside a chunk (not across chunks).
     """
-    from usdmotion.ops.retarget.jax_runtime import use_cpu_cores
-
     use_cpu_cores()  # before JAX's first computation in this process, if this is it
     import jax
     import jax.numpy as jnp
