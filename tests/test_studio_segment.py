@@ -23,7 +23,7 @@ import pytest
 
 from conftest import shared_path
 from studio_support import REPO, WALK, running_studio
-from test_studio_browser import CHROMIUM, browser, page  # noqa: F401 - fixtures: Debian's Chromium, a page
+from test_studio_browser import CHROMIUM, address, browser, page  # noqa: F401 - fixtures: Debian's Chromium, a page
 from test_studio_jobs import request, wait_state
 from usdmotion.io import read_motion
 from usdmotion.kinematics import joint_positions
@@ -318,7 +318,7 @@ def test_edit_save_and_export_in_the_browser(studio86, page):
     page.wait_for_function("document.querySelector('#seg-status').textContent.startsWith('kcpd')")
     detected = detector_cuts(root / TAKE_86).tolist()
     assert page_cuts(page) == detected
-    assert "seg=1" in page.url  # a link opens the editor too
+    assert "seg=1" in address(page)  # a link opens the editor too
     from usdmotion.ops.segment.detect import segment
 
     confidence = segment(read_motion(root / TAKE_86, units="asf")).confidence
@@ -357,7 +357,7 @@ def test_edit_save_and_export_in_the_browser(studio86, page):
     assert doc["cuts"] == cuts and [s["label"] for s in doc["segments"]] == names and doc["edited"] is True
     assert doc["method"] == "kcpd" and doc["frames"] == 4579
     # opening the take again (a link with seg=1) shows the saved segments, names and all
-    page.goto(page.url)
+    page.goto(address(page))
     page.wait_for_function("document.querySelector('#seg-status').textContent.startsWith('showing the saved')",
                            timeout=60_000)
     assert page.inner_text("#seg-status") == f"showing the saved segments {path.relative_to(out.parent).as_posix()}"
