@@ -427,7 +427,7 @@ def test_the_snap_puts_the_legs_back_on_the_ik_points_and_leaves_the_rest_of_the
     exactly on contact frames (the root coming down only where a raised hip cannot reach), the
     ankle a foot's length from its toe on toe-only frames and never below its level, the knee
     bending the way the phase bent it, and nothing moved on frames far from any contact."""
-    from usdmotion.ops.retarget.leg_ik import legs_of
+    from usdmotion.ops.retarget.leg_ik import legs_of, nearness
     from usdmotion.ops.retarget.leg_reach import DROP_WINDOW_S
     from usdmotion.ops.retarget.leg_snap import snap_legs
 
@@ -452,7 +452,8 @@ def test_the_snap_puts_the_legs_back_on_the_ik_points_and_leaves_the_rest_of_the
     held[30:75, 1] = toe
     level = np.array([low, world[:, 4, 1].min() - 0.5])  # the toe's too
     legs = legs_of(parents, np.array([3, 4]), ("left_ankle", "left_toe"), offsets, 0)
-    q2, t2 = snap_legs(q, t, parents, 0, legs, held, contact, level, 1, fps, fade_s, low - 20.0)
+    near = np.stack([nearness(contact[:, c], fade_s * fps) for c in range(2)], axis=1)  # the phase's weights
+    q2, t2 = snap_legs(q, t, parents, 0, legs, held, contact, near, level, 1, fps, low - 20.0)
     after = fk_arrays(q2, t2, parents)[1]  # independent FK of the result
     np.testing.assert_allclose(after[30:60, 3], held[30:60, 0], atol=1e-9)
     np.testing.assert_allclose(after[30:75, 4], held[30:75, 1], atol=1e-9)

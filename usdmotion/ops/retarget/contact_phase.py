@@ -83,14 +83,14 @@ def contact_phase(setup, terms, legs, q: np.ndarray, t: np.ndarray, problem: Pro
     targets = np.concatenate([setup.targets[:, mapped], held], axis=1) - centre[:, None]
     contact = np.asarray(terms.target_contacts.contact, bool)
     fade = CONTACT_FADE_S * terms.target_contacts.fps  # weights that switch in one frame make steps
-    contact = np.stack([nearness(contact[:, c], fade) for c in range(contact.shape[1])], axis=1)
+    near = np.stack([nearness(contact[:, c], fade) for c in range(contact.shape[1])], axis=1)
     weights = np.concatenate([np.broadcast_to(setup.weights[mapped], (q.shape[0], len(mapped))),
-                              CONTACT_WEIGHT * contact], axis=1)
+                              CONTACT_WEIGHT * near], axis=1)
     solution = solve(problem, q, t0, targets, iterations=iterations, weights=weights)
     t = solution.t
     t[:, anchor] += centre
-    q, t = snap_legs(solution.q, t, setup.rig.parents, anchor, legs, held, terms.target_contacts.contact, terms.level,
-                     terms.up, terms.target_contacts.fps, CONTACT_FADE_S, terms.floor)
+    q, t = snap_legs(solution.q, t, setup.rig.parents, anchor, legs, held, contact, near, terms.level, terms.up,
+                     terms.target_contacts.fps, terms.floor)
     return q, t, solution
 
 

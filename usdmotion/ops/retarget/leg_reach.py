@@ -49,7 +49,6 @@ def hip_spikes(height: np.ndarray) -> np.ndarray:
     return np.maximum(height - median, 0.0)
 
 
-
 def with_hip_spikes(drop: np.ndarray, hips: np.ndarray, up: int) -> np.ndarray:
     """``drop (F,)`` plus :func:`hip_spikes` of the hips' mean height (``hips (F, L, 3)``) where the
     root comes down at all: a one-frame spike of the hips then leaves the root, not the knees."""

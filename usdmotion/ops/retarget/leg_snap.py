@@ -8,42 +8,41 @@ can: the ankle and toe targets are the phase's own joints moved towards the IK's
 phase's own contact weights (1 on contact frames, fading out over ``CONTACT_FADE_S``), a
 toe-only contact keeps the ankle on the sphere of the foot's length about the toe; the root
 comes down only where a target lies beyond a leg's reach (and by a hip spike more there, as in
-the leg IK); the two-bone IK keeps each knee
-in the phase's own bend plane. Running the whole leg IK again instead (its targets, fixed
-points moved within reach and knee-hinge rule from scratch) undid part of the phase's
-re-fit: joint-position RMS 0.92 against 0.95 cm on walk → legs 0.8×, 1.01 against 1.03 on
-1.2×, 4.11 against 4.13 on 86_01 → Rokoko (``benchmarks/retarget_contacts.py``).
+the leg IK); the two-bone IK keeps each knee in the phase's own bend plane. Running the
+whole leg IK again instead (its targets, fixed points moved within reach and knee-hinge rule
+from scratch) undid part of the phase's re-fit: joint-position RMS 0.92 against 0.95 cm on
+walk → legs 0.8×, 1.01 against 1.03 on 1.2×, 4.11 against 4.13 on 86_01 → Rokoko
+(``benchmarks/retarget_contacts.py``).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from usdmotion.ops.retarget.leg_ik import Leg, chain_joints, fk_of, nearness, toes_above_floor, two_bone, up_to_level
+from usdmotion.ops.retarget.leg_ik import Leg, chain_joints, fk_of, toes_above_floor, two_bone, up_to_level
 from usdmotion.ops.retarget.leg_reach import leg_reach, lower_root, root_drop, with_hip_spikes
 
 
 def snap_legs(q: np.ndarray, t: np.ndarray, parents: np.ndarray, anchor: int, legs: list[Leg], held: np.ndarray,
-              contact: np.ndarray, level: np.ndarray, up: int, fps: float, fade_s: float,
+              contact: np.ndarray, near: np.ndarray, level: np.ndarray, up: int, fps: float,
               floor: float) -> tuple[np.ndarray, np.ndarray]:
     """``(q, t)``: the contact phase's local rotations ``q (F, J, 4)`` and translations
     ``t (F, J, 3)`` (anchor world-placed) with every leg's contact joints on ``held (F, C, 3)``
     (where the leg IK put them) on their ``contact (F, C)`` frames, blended into the phase's
-    own positions over ``fade_s`` seconds (at ``fps``); ankles never below their ``level (C,)``,
-    the joints below each toe never below ``floor`` (target units)."""
+    own positions by ``near (F, C)`` (the phase's contact weights over ``CONTACT_WEIGHT``: 1 on
+    contact frames, fading to 0; :func:`~usdmotion.ops.retarget.leg_ik.nearness`); ankles
+    never below their ``level (C,)``, the joints below each toe never below ``floor`` (target
+    units); ``fps``: the motion's, for the root's smoothed drop."""
     chain = chain_joints(parents, legs, anchor)
     world_q, world_p = fk_of(q, t, parents, chain)
     q, t = q.copy(), t.copy()
-    fade = fade_s * fps
     targets = []
     for leg in legs:
-        near = nearness(contact[:, leg.ankle_c], fade)[:, None]
-        ankle = world_p[:, leg.ankle] + near * (held[:, leg.ankle_c] - world_p[:, leg.ankle])
+        ankle = world_p[:, leg.ankle] + near[:, leg.ankle_c, None] * (held[:, leg.ankle_c] - world_p[:, leg.ankle])
         ankle[:, up] = np.maximum(ankle[:, up], level[leg.ankle_c])
         toe = toe_level = None
         if leg.toe >= 0:
-            near = nearness(contact[:, leg.toe_c], fade)[:, None]
-            toe = world_p[:, leg.toe] + near * (held[:, leg.toe_c] - world_p[:, leg.toe])
+            toe = world_p[:, leg.toe] + near[:, leg.toe_c, None] * (held[:, leg.toe_c] - world_p[:, leg.toe])
             length = np.linalg.norm(world_p[:, leg.toe] - world_p[:, leg.ankle], axis=-1, keepdims=True)
             away = ankle - toe
             on_sphere = toe + length * away / np.maximum(np.linalg.norm(away, axis=-1, keepdims=True), 1e-300)
