@@ -276,12 +276,21 @@ _EXECUTABLES: dict = {}
 DAMPING = LM_DAMPING_UPDATE
 
 
-#: XLA options for the solvers' compiles on a CPU. The LM's loop body is ~15,000 lines of
-#: small elementwise HLO (the tree step's unrolled 6×6 algebra); XLA:CPU's fusion emitters
-#: took 16.5 s to compile it for 512 walk frames, the older loop emitters 10.0 s, and the
-#: compiled solve ran as fast (641 / 669 ms on one device, 481 / 479 ms on two; same loss),
-#: throwaway ``/tmp/exp/ctime3.py``. Compiling is most of a first retarget's time on a new rig.
-CPU_COMPILER_OPTIONS = {"xla_cpu_use_fusion_emitters": False}
+#: XLA options for the solvers' compiles on a CPU.
+#:
+#: * Loop emitters: the LM's loop body is ~15,000 lines of small elementwise HLO (the tree
+#:   step's unrolled 6×6 algebra); XLA:CPU's fusion emitters took 16.5 s to compile it for
+#:   512 walk frames, the older loop emitters 10.0 s, and the compiled solve ran as fast
+#:   (641 / 669 ms on one device, 481 / 479 ms on two; same loss), throwaway
+#:   ``/tmp/exp/ctime3.py``. Compiling is most of a first retarget's time on a new rig.
+#: * YNNPACK for matrix products only: by default XLA:CPU also hands reductions (the
+#:   per-frame loss sums ``Σ w ‖r‖²``, the norms) to YNNPACK, which ran them over 576 frames
+#:   in ~0.3 ms each, a fifth of an LM iteration. Products only: the plain solve took
+#:   0.66–0.83× the time on the benchmark's pairs (min of 10 alternated runs, two devices:
+#:   walk → Bandai 74.1 → 54.5 ms, 86_01 → Rokoko 239.0 → 159.5 ms; no YNNPACK at all:
+#:   64.7 / 207.6 ms), same losses to 6 digits (throwaway ``/tmp/exp/ynn_solve.py``).
+CPU_COMPILER_OPTIONS = {"xla_cpu_use_fusion_emitters": False,
+                       "xla_cpu_experimental_ynn_fusion_type": "LIBRARY_FUSION_TYPE_DOT"}
 
 
 def compile_lowered(lowered):
