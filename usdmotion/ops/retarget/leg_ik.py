@@ -37,7 +37,7 @@ from usdmotion.kinematics import fk_arrays
 from usdmotion.ops.contacts.detect import runs
 from usdmotion.ops.retarget.hierarchy import ancestor_matrix
 from usdmotion.ops.retarget.leg_reach import REACH, leg_reach, lower_root, root_drop, with_hip_spikes
-from usdmotion.rotations import quat_conjugate, quat_mul, quat_normalize, quat_rotate
+from usdmotion.rotations import cross, quat_conjugate, quat_mul, quat_normalize, quat_rotate
 from usdmotion.skeleton_names import descendants
 
 #: Weight of the foot's heading (per unit of bone length) in the direction a toe End Site
@@ -307,7 +307,7 @@ def _grid_minimum(cost, steps: np.ndarray, coarse: int = 5) -> np.ndarray:
 def _swing(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``(..., 4)`` the shortest rotations taking directions ``a`` to ``b`` ``(..., 3)``."""
     a, b = _unit(a), _unit(b)
-    q = np.concatenate([1.0 + np.sum(a * b, axis=-1, keepdims=True), np.cross(a, b)], axis=-1)
+    q = np.concatenate([1.0 + np.sum(a * b, axis=-1, keepdims=True), cross(a, b)], axis=-1)
     return quat_normalize(q)
 
 
@@ -406,9 +406,9 @@ def knee_hinge_bend(world_q: np.ndarray, world_p: np.ndarray, leg: Leg, u: np.nd
     in one frame where the source's largest steps are 3.8° and 6.3°)."""
     hip, knee, ankle = world_p[:, leg.hip], world_p[:, leg.knee], world_p[:, leg.ankle]
     thigh = world_q[:, leg.hip]
-    normal = np.cross(knee - hip, ankle - knee)  # (F, 3), length ∝ sin(bend)
+    normal = cross(knee - hip, ankle - knee)  # (F, 3), length ∝ sin(bend)
     axis = _unit(quat_rotate(quat_conjugate(thigh), normal).sum(axis=0))
-    return _unit(np.cross(u, quat_rotate(thigh, np.broadcast_to(axis, normal.shape))))
+    return _unit(cross(u, quat_rotate(thigh, np.broadcast_to(axis, normal.shape))))
 
 
 def two_bone(q, world_q, world_p, parents, leg: Leg, ankle_target, toe_target, up, toe_level, hinge=HINGE_SHARE):
