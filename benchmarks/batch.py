@@ -24,7 +24,10 @@ minute to the next (a pure-Python loop timed alone three times ran 708-936 itera
 so one loop against one batch run minutes apart says little; pairs taken back to back do. Each
 round then also runs two copies of the loop at once in two subprocesses with the workers'
 one-thread environment (no Dask): what the two cores give two plain processes in that minute,
-the ceiling the batch's ratio compares with.
+the ceiling the batch's ratio compares with. Every run also gives the share of CPU time the
+hypervisor **stole** from this virtual machine meanwhile (``/proc/stat``'s steal ticks over
+busy + steal ticks): the cloud host runs other guests' work on the same physical cores, and
+the more cores this machine keeps busy, the more it can lose.
 Warnings (e.g. IMPLAUSIBLE UNITS of the cgspeed takes read in centimetres) are collected,
 as the batch collects them into its catalogue, and counted, not printed. Prints a table and
 writes ``benchmarks/results/batch.json``.
@@ -172,6 +175,27 @@ def _rss(pids: list[int]) -> float:
     return sum(psutil.Process(pid).memory_info().rss for pid in pids) / len(pids)
 
 
+def host_ticks() -> list[int] | None:
+    """The whole machine's CPU ticks so far (``/proc/stat``: user, nice, system, idle, iowait,
+    irq, softirq, steal), or None where there is no such file."""
+    try:
+        with open("/proc/stat") as f:
+            return [int(x) for x in f.readline().split()[1:9]]
+    except (OSError, ValueError):
+        return None
+
+
+def stolen_share(before: list[int] | None, after: list[int] | None) -> float | None:
+    """Share of the time this machine's work wanted a CPU that the hypervisor gave to another
+    guest (steal ticks over busy + steal ticks) between two :func:`host_ticks`: a virtual
+    machine's two cores are two cores only when nobody else's work runs on them."""
+    if before is None or after is None:
+        return None
+    d = [b - a for a, b in zip(before, after, strict=True)]
+    busy = d[0] + d[1] + d[2] + d[5] + d[6] + d[7]
+    return d[7] / busy if busy > 0 else None
+
+
 def _noop(i: int) -> int:
     return i
 
@@ -242,18 +266,20 @@ ENGINES = (("dask-1", 1, None), ("dask-2", 2, None), ("dask-2/take", 2, 0))
 
 def run_operation(library: Path, work: Path, operation: str, takes: int, frames: int) -> dict:
     """Every engine on one operation, one after another; the 1-minute load average before each."""
-    load = os.getloadavg()[0]
+    load, ticks = os.getloadavg()[0], host_ticks()
     seq = sequential(library, work / f"seq-{operation}", operation)
     runs = {"sequential": {**seq, "takes": takes, "frames": frames, "load_before": load,
-                           "cpu_ms_per_take": 1000 * seq["cpu_s"] / takes}}
-    load = os.getloadavg()[0]
+                           "cpu_ms_per_take": 1000 * seq["cpu_s"] / takes, "stolen": stolen_share(ticks, host_ticks())}}
+    load, ticks = os.getloadavg()[0], host_ticks()
     one = sequential_one_thread(library, work / f"seq1-{operation}", operation)
     runs["sequential-1t"] = {**one, "takes": takes, "frames": frames, "load_before": load,
-                             "cpu_ms_per_take": 1000 * one["cpu_s"] / takes}
+                             "cpu_ms_per_take": 1000 * one["cpu_s"] / takes,
+                             "stolen": stolen_share(ticks, host_ticks())}
     for name, workers, task_bytes in ENGINES:
-        load = os.getloadavg()[0]
+        load, ticks = os.getloadavg()[0], host_ticks()
         runs[name] = {**batch_run(library, work / name.replace("/", "-") / operation, operation, workers, task_bytes,
                                   noop=name == "dask-2"), "load_before": load}
+        runs[name]["stolen"] = stolen_share(ticks, host_ticks())  # with the no-op tasks: a second at most
     return runs
 
 
@@ -262,22 +288,37 @@ def alternated_pairs(library: Path, work: Path, operation: str, pairs: int) -> l
     loop first in even rounds and second in odd ones (a drift of the machine's speed within a round
     then counts for the batch as often as against it): each round's wall times and ratio."""
     rounds = []
+
+    def timed(run, *args) -> tuple[float, float | None]:
+        before = host_ticks()
+        wall = run(*args)
+        return wall, stolen_share(before, host_ticks())
+
+    def loop_s(out: Path) -> float:
+        return sequential(library, out, operation)["wall_s"]
+
+    def batch_s(out: Path) -> float:
+        return batch_run(library, out, operation, 2)["wall_s"]
+
+    def two_loops_s(out: Path) -> float:
+        return max(r["wall_s"] for r in sequential_processes(library, out, operation, 2))
+
     for i in range(pairs):
         loop_out, batch_out = work / f"pair{i}-seq-{operation}", work / f"pair{i}-dask-2" / operation
         if i % 2:  # the batch first
-            batch = batch_run(library, batch_out, operation, 2)["wall_s"]
-            loop = sequential(library, loop_out, operation)["wall_s"]
+            (batch, batch_stolen), (loop, loop_stolen) = timed(batch_s, batch_out), timed(loop_s, loop_out)
         else:
-            loop = sequential(library, loop_out, operation)["wall_s"]
-            batch = batch_run(library, batch_out, operation, 2)["wall_s"]
+            (loop, loop_stolen), (batch, batch_stolen) = timed(loop_s, loop_out), timed(batch_s, batch_out)
         two_out = work / f"pair{i}-two-{operation}"
-        two = max(r["wall_s"] for r in sequential_processes(library, two_out, operation, 2))
+        two, two_stolen = timed(two_loops_s, two_out)
         rounds.append({"loop_s": loop, "dask2_s": batch, "ratio": loop / batch, "two_loops_s": two,
-                       "two_loops_ratio": 2 * loop / two, "load": os.getloadavg()[0]})
+                       "two_loops_ratio": 2 * loop / two, "load": os.getloadavg()[0],
+                       "stolen": {"loop": loop_stolen, "dask2": batch_stolen, "two_loops": two_stolen}})
         for done in (loop_out, batch_out.parent, two_out):
             shutil.rmtree(done, ignore_errors=True)  # an analyze round writes ~0.6 GB
         print(f"  {operation} pair {i + 1}: loop {loop:.1f} s, dask-2 {batch:.1f} s, {loop / batch:.2f}x; "
-              f"two 1-thread loops at once {two:.1f} s, {2 * loop / two:.2f}x (load {rounds[-1]['load']:.1f})",
+              f"two 1-thread loops at once {two:.1f} s, {2 * loop / two:.2f}x (load {rounds[-1]['load']:.1f}; CPU "
+              f"stolen {_pct(loop_stolen)} / {_pct(batch_stolen)} / {_pct(two_stolen)})",
               flush=True)
     return rounds
 
@@ -303,7 +344,7 @@ def table_rows(operation: str, runs: dict) -> list[list]:
                      f"{r['frames'] / r['wall_s']:.0f}", f"{seq / r['wall_s']:.2f}x", f"{one / r['wall_s']:.2f}x",
                      f"{cpu_bound_ratio(runs, name):.2f}x", f"{r['cpu_ms_per_take']:.1f}", _fmt(r.get("client_cpu_ms_per_take")),
                      f"{r.get('startup_s', 0):.1f}", _fmt(r.get("idle_per_take_ms")), _fmt(r.get("noop_task_ms")),
-                     rss, f"{r['load_before']:.1f}"])
+                     rss, f"{r['load_before']:.1f}", _pct(r.get("stolen"))])
     return rows
 
 
@@ -368,7 +409,7 @@ def main() -> None:
         print_table(f"usdmotion batch on {machine()['cpus']} cores ({takes} takes, {frames} frames); CPU: of every "
                     "process of the run, ms per take", ["operation", "engine", "wall s", "takes/s", "frames/s",
                     "vs loop", "vs 1t loop", "CPU-bound vs loop", "CPU ms/take", "client CPU", "start-up+warm-up s", "idle ms/take",
-                    "no-op ms/task", "worker RSS MiB first→last", "load avg"], table)
+                    "no-op ms/task", "worker RSS MiB first→last", "load avg", "CPU stolen"], table)
         costs = per_take_costs(results)
         paper = on_paper(results)
         pairs = {}
@@ -390,6 +431,10 @@ def main() -> None:
 
 def _fmt(value, digits: int = 1) -> str:
     return "-" if value is None else f"{value:.{digits}f}"
+
+
+def _pct(share: float | None) -> str:
+    return "-" if share is None else f"{100 * share:.0f} %"
 
 
 if __name__ == "__main__":
