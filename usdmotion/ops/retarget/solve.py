@@ -199,12 +199,15 @@ def _make_lm(problem: Problem, linear: str = "tree", damping: str = LM_DAMPING_U
     nielsen = damping == "nielsen"
     model_gain = make_model_gain(problem) if nielsen else None
     rot_j = jnp.asarray(problem.rot_joints)
+    prior_w = jnp.asarray(problem.prior if problem.anchored else np.zeros(len(problem.rot_joints)), jnp.float32)
 
     def solve(q, t, targets, w, floor, smooth_mask, iterations):
         world_q, world_p, r, loss, w_all = evaluate(q, t, targets, w, floor)
         prior = world_q[:, rot_j] if problem.anchored else None
+        rot_r = jnp.zeros(world_q.shape[:1] + (len(problem.rot_joints), 3), world_q.dtype)
         if smoothing:
-            loss = loss + smoothness(world_q, smooth_mask, None, prior)[2]
+            rot_r, _, s_loss = smoothness(world_q, smooth_mask, None, prior)
+            loss = loss + s_loss
         initial = loss
         lam = jnp.full(loss.shape, LM_LAMBDA0, loss.dtype)
         nu = jnp.full(loss.shape, 2.0, loss.dtype)  # Nielsen's factor for the next rejection
@@ -216,18 +219,22 @@ def _make_lm(problem: Problem, linear: str = "tree", damping: str = LM_DAMPING_U
             return (i < iterations) & (total(jnp.sum(~frames_done)) > 0) & (flat < 2)
 
         def body(carry):
-            i, q, t, world_q, world_p, r, loss, lam, stall, flat, w_all, nu = carry
-            rot_r = rot_w = None
-            if smoothing:  # neighbours held for this iteration (Jacobi over time)
+            i, q, t, world_q, world_p, r, loss, lam, stall, flat, w_all, nu, rot_r = carry
+            rot_w = mid = None
+            if problem.smoothing:  # neighbours held for this iteration (Jacobi over time)
                 mid = smoothness.midpoints(world_q)
                 rot_r, rot_w, s_loss = smoothness(world_q, smooth_mask, mid, prior)
                 loss = evaluate_loss(r, w_all) + s_loss
+            elif smoothing:  # the prior alone: the residuals were computed with the iterate, its weights are fixed
+                rot_w = jnp.broadcast_to(prior_w, rot_r.shape[:2]).astype(rot_r.dtype)
             step = lm_step(world_p, r, lam, w_all, rot_r, rot_w) if smoothing else lm_step(world_p, r, lam, w_all)
             predicted = model_gain(world_p, r, w_all, step, rot_r, rot_w) if nielsen else None
             q2, t2 = apply(q, t, world_q, step)
             world_q2, world_p2, r2, loss2, w2 = evaluate(q2, t2, targets, w, floor)
+            rot_r2 = rot_r
             if smoothing:
-                loss2 = loss2 + smoothness(world_q2, smooth_mask, mid, prior)[2]
+                rot_r2, _, s_loss2 = smoothness(world_q2, smooth_mask, mid, prior)
+                loss2 = loss2 + s_loss2
             ok = (loss2 < loss) & jnp.isfinite(loss2)
             gain = jnp.where(ok, (loss - loss2) / jnp.maximum(loss, 1e-30), 0.0)
             if stiff:  # a rejected step only raises λ: a frame has stalled when accepted steps gain nothing
@@ -247,10 +254,10 @@ def _make_lm(problem: Problem, linear: str = "tree", damping: str = LM_DAMPING_U
             else:
                 lam = jnp.clip(jnp.where(ok, lam * LM_DOWN, lam * LM_UP), LM_LAMBDA_MIN, LM_LAMBDA_MAX)
             return (i + 1, pick(q2, q), pick(t2, t), pick(world_q2, world_q), pick(world_p2, world_p), pick(r2, r),
-                    new_loss, lam, stall, flat, pick(w2, w_all), nu)
+                    new_loss, lam, stall, flat, pick(w2, w_all), nu, pick(rot_r2, rot_r))
 
         carry = jax.lax.while_loop(cond, body, (jnp.int32(0), q, t, world_q, world_p, r, loss, lam, stall,
-                                                jnp.int32(0), w_all, nu))
+                                                jnp.int32(0), w_all, nu, rot_r))
         return carry[1], carry[2], carry[6], initial, carry[0]
 
     if not axis:
