@@ -410,7 +410,6 @@ def solve(problem: Problem, q0: np.ndarray, t0: np.ndarray, targets: np.ndarray,
     """
     use_cpu_cores()  # before JAX's first computation in this process, if this is it
     import jax
-    import jax.numpy as jnp
 
 
     if method not in ("lm", "adam"):
@@ -445,14 +444,15 @@ def solve(problem: Problem, q0: np.ndarray, t0: np.ndarray, targets: np.ndarray,
     for start in range(0, n_frames, chunk):
         stop = min(start + chunk, n_frames)
         pad = np.r_[np.arange(start, stop), np.full(chunk - (stop - start), stop - 1)]
-        args = [jnp.asarray(a[pad], jnp.float32) for a in (q0, t0, targets)]
+        # float32 in NumPy, then one transfer (a JAX conversion would dispatch an op and copy twice)
+        args = [np.asarray(a[pad], np.float32) for a in (q0, t0, targets)]
         if theta0 is not None:
-            args.append(jnp.asarray(theta0[pad], jnp.float32))
+            args.append(np.asarray(theta0[pad], np.float32))
         else:
             inner = np.zeros(chunk, np.float32)  # frames with two real neighbours in this chunk
             inner[1: stop - start - 1] = 1.0
-            args += [jnp.asarray(weights[pad], jnp.float32), jnp.asarray(floor[pad], jnp.float32),
-                     jnp.asarray(inner), jnp.int32(iterations)]
+            args += [np.asarray(weights[pad], np.float32), np.asarray(floor[pad], np.float32), inner,
+                     np.int32(iterations)]
             args = place(args)
         fn, seconds = _executable(problem, method, iterations, float(lr), args, damping, shards)
         compile_s += seconds
