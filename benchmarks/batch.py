@@ -86,13 +86,15 @@ def build_library(folder: Path, takes: int, frames: int) -> tuple[int, int]:
 
 
 def sequential(library: Path, out: Path, operation: str) -> dict:
-    """The plain loop: the library calls the batch task makes, one take after another
+    """The plain loop: the library calls the batch task makes (those of the single-file
+    command: ``convert`` checks the paths and drops what a USD file does not write before
+    writing), one take after another
     (warnings recorded, as the batch records them, not printed). Before the clock, the
     process is prepared as a Dask worker prepares itself (imports, one take)."""
     from usdmotion.anthropometry import body_model
     from usdmotion.errors import InputError
     from usdmotion.io import read_motion
-    from usdmotion.io.convert import convert_motion
+    from usdmotion.io.convert import check_convert_paths, convert_motion, kept_for
     from usdmotion.ops.analyse import analyse
     from usdmotion.ops.analyse.report import summary, write_kinematics, write_summary
 
@@ -106,10 +108,11 @@ def sequential(library: Path, out: Path, operation: str) -> dict:
         for path in files:
             dst = out / path.relative_to(library).with_suffix("")
             dst.parent.mkdir(parents=True, exist_ok=True)
-            motion = read_motion(path)
-            if operation == "convert":
-                convert_motion(motion, f"{dst}.usdc", validate=True)  # as the batch task does
+            if operation == "convert":  # the calls of the batch task and of `usdmotion convert`
+                check_convert_paths(path, f"{dst}.usdc")
+                convert_motion(kept_for(read_motion(path), f"{dst}.usdc"), f"{dst}.usdc", validate=True)
                 continue
+            motion = read_motion(path)
             try:
                 body = body_model(motion, "male", None, source=str(path))
             except InputError:
