@@ -293,7 +293,7 @@ DAMPING = LM_DAMPING_UPDATE
 #: * YNNPACK for matrix products only: by default XLA:CPU also hands reductions (the
 #:   per-frame loss sums ``Σ w ‖r‖²``, the norms) to YNNPACK, which ran them over 576 frames
 #:   in ~0.3 ms each, a fifth of an LM iteration. Products only: the plain solve took
-#:   0.66–0.83× the time on the benchmark's pairs (min of 10 alternated runs, two devices:
+#:   0.67–0.83× the time on the benchmark's pairs (min of 10 alternated runs, two devices:
 #:   walk → Bandai 74.1 → 54.5 ms, 86_01 → Rokoko 239.0 → 159.5 ms; no YNNPACK at all:
 #:   64.7 / 207.6 ms), same losses to 6 digits (throwaway ``/tmp/exp/ynn_solve.py``).
 CPU_COMPILER_OPTIONS = {"xla_cpu_use_fusion_emitters": False,
