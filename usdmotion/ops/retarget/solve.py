@@ -204,7 +204,8 @@ def _make_lm(problem: Problem, linear: str = "tree", damping: str = LM_DAMPING_U
     def solve(q, t, targets, w, floor, smooth_mask, iterations):
         world_q, world_p, r, loss, w_all = evaluate(q, t, targets, w, floor)
         prior = world_q[:, rot_j] if problem.anchored else None
-        rot_r = jnp.zeros(world_q.shape[:1] + (len(problem.rot_joints), 3), world_q.dtype)
+        # the rotation residuals of the iterate, carried for the prior alone (none without rotation terms)
+        rot_r = jnp.zeros(world_q.shape[:1] + (len(problem.rot_joints) if smoothing else 0, 3), world_q.dtype)
         if smoothing:
             rot_r, _, s_loss = smoothness(world_q, smooth_mask, None, prior)
             loss = loss + s_loss
@@ -291,11 +292,11 @@ DAMPING = LM_DAMPING_UPDATE
 #:   (641 / 669 ms on one device, 481 / 479 ms on two; same loss), throwaway
 #:   ``/tmp/exp/ctime3.py``. Compiling is most of a first retarget's time on a new rig.
 #: * YNNPACK for matrix products only: by default XLA:CPU also hands reductions (the
-#:   per-frame loss sums ``Σ w ‖r‖²``, the norms) to YNNPACK, which ran them over 576 frames
-#:   in ~0.3 ms each, a fifth of an LM iteration. Products only: the plain solve took
-#:   0.67–0.83× the time on the benchmark's pairs (min of 10 alternated runs, two devices:
-#:   walk → Bandai 74.1 → 54.5 ms, 86_01 → Rokoko 239.0 → 159.5 ms; no YNNPACK at all:
-#:   64.7 / 207.6 ms), same losses to 6 digits (throwaway ``/tmp/exp/ynn_solve.py``).
+#:   per-frame loss sums ``Σ w ‖r‖²``, the norms) to YNNPACK, which took up to ~0.3 ms for
+#:   one over 576 frames, about a quarter of an LM iteration's time in all. Products only:
+#:   the plain solve took 0.67–0.83× the time on the benchmark's pairs (min of 10 alternated
+#:   runs, two devices: walk → Bandai 74.1 → 54.5 ms, 86_01 → Rokoko 239.0 → 159.5 ms; no
+#:   YNNPACK at all: 64.7 / 207.6 ms), same losses to 6 digits (``/tmp/exp/ynn_solve.py``).
 CPU_COMPILER_OPTIONS = {"xla_cpu_use_fusion_emitters": False,
                        "xla_cpu_experimental_ynn_fusion_type": "LIBRARY_FUSION_TYPE_DOT"}
 
@@ -410,7 +411,6 @@ def solve(problem: Problem, q0: np.ndarray, t0: np.ndarray, targets: np.ndarray,
     """
     use_cpu_cores()  # before JAX's first computation in this process, if this is it
     import jax
-
 
     if method not in ("lm", "adam"):
         raise ValueError(f"unknown method {method!r}")
