@@ -53,3 +53,50 @@ def test_workers_run_one_thread_and_warm_up_on_a_real_take(tmp_path, monkeypatch
     assert list(scratch.iterdir()) == []  # the warm-up takes' folders are gone
     err = capfd.readouterr().err
     assert "PXR_WORK_THREAD_LIMIT" not in err and "####" not in err
+
+
+def test_catalogue_values_round_trip_exactly_without_pandas(tmp_path):
+    """``write_catalogue`` (rows as JSON lines parsed against the schema) and
+    ``read_catalogue`` give back every value exactly — floats to the last bit, NaN, infinities,
+    NumPy scalars, lists, text with newlines and non-ASCII — and, in a fresh process, never
+    import pandas (0.24 s of CPU in the client beside the workers); ``pa.Table.from_pylist``
+    is the independent reference for the table."""
+    import math
+    import subprocess
+
+    import numpy as np
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from usdmotion.batch.catalogue import ALL_COLUMNS, read_catalogue, schema, write_catalogue
+
+    rows = {("analyze", f"s{i}__take.bvh"): {
+        "operation": "analyze", "take": f"s{i}__take.bvh", "relpath": f"s{i}/täke.bvh", "source": f"/lib/s{i}/täke.bvh",
+        "size_bytes": 2**40 + i, "mtime": 1732812345.123456789 + i / 7, "frames": np.int64(240 + i),
+        "fps": np.float64(120.0), "duration_s": (240 + i) / 120, "meters_per_unit": 0.0254 * 0.45,
+        "outputs": [f"/out/s{i}/a.json", "/out/b.parquet"], "status": "ok" if i else "error",
+        "error": None if i else "bad.bvh:3: no HIERARCHY", "warnings": "line one\nline \"two\"",
+        "peak_joint_speed": [math.nan, math.inf, -math.inf, 5e-324][i], "com_peak_speed": None,
+        "not_a_column": "dropped"} for i in range(4)}
+    path = tmp_path / "catalogue.parquet"
+    write_catalogue(rows, path)
+    reference = pa.Table.from_pylist(sorted(({k: r.get(k) for k in ALL_COLUMNS} for r in rows.values()),
+                                            key=lambda r: r["relpath"]), schema=schema())
+    table = pq.read_table(path)
+    assert table.schema.equals(schema())
+    for name in ALL_COLUMNS:
+        assert table.column(name).to_pylist() == reference.column(name).to_pylist() or name == "peak_joint_speed"
+    back = read_catalogue(path)
+    assert set(back) == set(rows)
+    for key, row in rows.items():
+        for name in ALL_COLUMNS:
+            want, got = row.get(name), back[key][name]
+            assert (math.isnan(got) if isinstance(want, float) and math.isnan(want) else got == want), (name, got, want)
+    write_catalogue({}, path)
+    assert pq.read_table(path).num_rows == 0
+    code = ("import sys; from pathlib import Path; from usdmotion.batch.catalogue import write_catalogue, read_catalogue;"
+            f"p = Path({str(tmp_path / 'c2.parquet')!r}); "
+            "write_catalogue({('convert', 't'): {'operation': 'convert', 'take': 't', 'outputs': ['x']}}, p); "
+            "assert len(read_catalogue(p)) == 1; print('pandas' in sys.modules)")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=False)
+    assert done.stdout.strip() == "False", done.stderr[-2000:]

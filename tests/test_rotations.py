@@ -150,3 +150,20 @@ def test_one_hamilton_product_for_every_layout():
     assert np.array_equal(np.stack(R.hamilton(a.T, b.T), axis=-1), product)
     assert np.array_equal(Q.from_c(Q.mul(Q.to_c(a), Q.to_c(b))), product)
     assert np.array_equal(Q.from_c(Q.mul(Q.to_c(a), Q.to_c(b[:1]))), R.quat_mul(a, b[:1]))  # broadcasting
+
+
+@pytest.mark.parametrize("shapes", [((523, 3), (523, 3)), ((40, 1, 3), (40, 7, 3)), ((3,), (5, 3)), ((4, 3), (3,))])
+def test_cross_is_numpys_bit_for_bit_and_follows_jax(shapes):
+    """``rotations.cross`` (NumPy's values without its axis bookkeeping) against ``np.cross``
+    on broadcasting shapes and both float widths, and ``jnp.cross`` for JAX arrays."""
+    import jax.numpy as jnp
+
+    rng = np.random.default_rng(4)
+    a, b = rng.normal(size=shapes[0]), rng.normal(size=shapes[1])
+    for x, y in ((a, b), (a.astype(np.float32), b.astype(np.float32))):
+        ours = R.cross(x, y)
+        assert ours.dtype == x.dtype and np.array_equal(ours, np.cross(x, y))
+    assert np.allclose(np.sum(R.cross(a, b) * a, -1), 0, atol=1e-12)  # perpendicular to both
+    got = R.cross(jnp.asarray(a, jnp.float32), jnp.asarray(b, jnp.float32))
+    assert type(got).__module__.startswith("jax")
+    np.testing.assert_allclose(np.asarray(got), np.cross(a, b), rtol=1e-5, atol=1e-5)

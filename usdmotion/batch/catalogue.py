@@ -83,7 +83,6 @@ def write_catalogue(rows: dict[tuple[str, str], dict], path: str | Path) -> Path
 
 
 def _item(value):
-    """A NumPy scalar as the Python number it holds (``json.dumps``' fallback)."""
-    if hasattr(value, "item"):
-        return value.item()
-    raise TypeError(f"{type(value).__name__} is not a catalogue value")
+    """A NumPy scalar as the Python number it holds (``json.dumps``' fallback; the tasks' rows
+    hold nothing else that JSON lacks)."""
+    return value.item()
