@@ -65,6 +65,7 @@ def make_rotation_terms(problem: Problem, axis: str | None = None, shards: int =
         return rot_r / jnp.maximum(rot_w, 1e-30)[..., None], rot_w, loss
 
     smoothness.midpoints = midpoints
+    smoothness.prior_weights = prior_w  # (R,): the prior's weights, the same every iteration
     return smoothness
 
 

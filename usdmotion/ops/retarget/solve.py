@@ -199,7 +199,6 @@ def _make_lm(problem: Problem, linear: str = "tree", damping: str = LM_DAMPING_U
     nielsen = damping == "nielsen"
     model_gain = make_model_gain(problem) if nielsen else None
     rot_j = jnp.asarray(problem.rot_joints)
-    prior_w = jnp.asarray(problem.prior if problem.anchored else np.zeros(len(problem.rot_joints)), jnp.float32)
 
     def solve(q, t, targets, w, floor, smooth_mask, iterations):
         world_q, world_p, r, loss, w_all = evaluate(q, t, targets, w, floor)
@@ -227,7 +226,7 @@ def _make_lm(problem: Problem, linear: str = "tree", damping: str = LM_DAMPING_U
                 rot_r, rot_w, s_loss = smoothness(world_q, smooth_mask, mid, prior)
                 loss = evaluate_loss(r, w_all) + s_loss
             elif smoothing:  # the prior alone: the residuals were computed with the iterate, its weights are fixed
-                rot_w = jnp.broadcast_to(prior_w, rot_r.shape[:2]).astype(rot_r.dtype)
+                rot_w = jnp.broadcast_to(smoothness.prior_weights, rot_r.shape[:2]).astype(rot_r.dtype)
             step = lm_step(world_p, r, lam, w_all, rot_r, rot_w) if smoothing else lm_step(world_p, r, lam, w_all)
             predicted = model_gain(world_p, r, w_all, step, rot_r, rot_w) if nielsen else None
             q2, t2 = apply(q, t, world_q, step)
