@@ -14,10 +14,9 @@ import dataclasses
 
 import numpy as np
 
-from usdmotion.kinematics import fk_arrays
 from usdmotion.ops.retarget.contact_terms import leg_joints
-from usdmotion.ops.retarget.hierarchy import ancestor_matrix
-from usdmotion.ops.retarget.leg_ik import nearness
+from usdmotion.ops.retarget.hierarchy import ancestor_matrix, with_ancestors
+from usdmotion.ops.retarget.leg_ik import fk_of, nearness
 from usdmotion.ops.retarget.leg_snap import snap_legs
 from usdmotion.ops.retarget.problem import Problem
 from usdmotion.ops.retarget.rotation_terms import smooth_scale
@@ -79,7 +78,7 @@ def contact_phase(setup, terms, legs, q: np.ndarray, t: np.ndarray, problem: Pro
     centre = setup.translations[:, anchor]
     t0 = t.copy()
     t0[:, anchor] -= centre
-    held = fk_arrays(q, t, setup.rig.parents)[1][:, terms.joints]
+    held = fk_of(q, t, setup.rig.parents, with_ancestors(setup.rig.parents, terms.joints))[1][:, terms.joints]
     targets = np.concatenate([setup.targets[:, mapped], held], axis=1) - centre[:, None]
     contact = np.asarray(terms.target_contacts.contact, bool)
     fade = CONTACT_FADE_S * terms.target_contacts.fps  # weights that switch in one frame make steps

@@ -110,6 +110,15 @@ def ancestor_matrix(parents: np.ndarray) -> np.ndarray:
     return anc
 
 
+def with_ancestors(parents: np.ndarray, joints) -> np.ndarray:
+    """``(K,)`` sorted: ``joints`` and every ancestor of them (a set closed under parents,
+    whose forward kinematics needs no other joint)."""
+    keep = np.zeros(len(parents), bool)
+    keep[np.asarray(joints, np.int64)] = True
+    keep |= ancestor_matrix(parents)[:, keep].any(axis=1)
+    return np.flatnonzero(keep)
+
+
 def rig_from_motion(motion: Motion, path: str | None = None) -> Rig:
     """The skeleton of a motion as a :class:`Rig` (its animation is dropped)."""
     animated = np.zeros(motion.n_joints, bool)

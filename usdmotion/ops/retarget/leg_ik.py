@@ -35,7 +35,7 @@ import numpy as np
 
 from usdmotion.kinematics import fk_arrays
 from usdmotion.ops.contacts.detect import runs
-from usdmotion.ops.retarget.hierarchy import ancestor_matrix
+from usdmotion.ops.retarget.hierarchy import ancestor_matrix, with_ancestors
 from usdmotion.ops.retarget.leg_reach import REACH, leg_reach, lower_root, root_drop, with_hip_spikes
 from usdmotion.rotations import cross, quat_conjugate, quat_mul, quat_normalize, quat_rotate
 from usdmotion.skeleton_names import descendants
@@ -344,11 +344,9 @@ def place_legs(q: np.ndarray, t: np.ndarray, parents: np.ndarray, anchor: int, l
 def chain_joints(parents: np.ndarray, legs: list[Leg], anchor: int) -> np.ndarray:
     """``(K,)`` sorted joints the leg IK reads: the legs' joints, the joints below each toe
     (or toeless ankle), ``anchor``, and every ancestor of these (closed under parents)."""
-    anc = ancestor_matrix(parents)  # [i, j]: i is an ancestor of j
-    keep = anc[[leg.toe if leg.toe >= 0 else leg.ankle for leg in legs]].any(axis=0)
-    keep[[anchor, *(j for leg in legs for j in (leg.hip, leg.knee, leg.ankle, leg.toe) if j >= 0)]] = True
-    keep |= anc[:, keep].any(axis=1)
-    return np.flatnonzero(keep)
+    below_toes = ancestor_matrix(parents)[[leg.toe if leg.toe >= 0 else leg.ankle for leg in legs]].any(axis=0)
+    legs_joints = [j for leg in legs for j in (leg.hip, leg.knee, leg.ankle, leg.toe) if j >= 0]
+    return with_ancestors(parents, [anchor, *legs_joints, *np.flatnonzero(below_toes)])
 
 
 def fk_of(q: np.ndarray, t: np.ndarray, parents: np.ndarray, joints: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

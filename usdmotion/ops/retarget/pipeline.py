@@ -34,13 +34,13 @@ from usdmotion.channels import rotation_order
 from usdmotion.kinematics import fk_arrays, world_rotations_positions
 from usdmotion.motion import POSITION_CHANNELS, Motion
 from usdmotion.ops.retarget.hierarchy import (Rig, RetargetError, UnitsMismatchError, adapt_offsets, ancestor_matrix,
-                                     derive_rig, mapped_chains, rig_from_motion, source_bone_lengths)
+                                     derive_rig, mapped_chains, rig_from_motion, source_bone_lengths, with_ancestors)
 from usdmotion.ops.retarget import quality as retarget_quality
 from usdmotion.ops.retarget import report as retarget_report
 from usdmotion.ops.retarget.contact_terms import ROOT_SCALES, contact_terms, solved_ankle_levels
 from usdmotion.ops.retarget.jointmap import JointMap, resolve_map
 from usdmotion.ops.retarget.contact_phase import CONTACT_ITERATIONS, body_weight, contact_phase
-from usdmotion.ops.retarget.leg_ik import legs_of, place_legs
+from usdmotion.ops.retarget.leg_ik import fk_of, legs_of, place_legs
 from usdmotion.ops.retarget.losses import frame_losses
 from usdmotion.ops.retarget.problem import Problem
 from usdmotion.ops.retarget.aim import aim_init, aim_single_points, identity_quats as _identity
@@ -452,7 +452,8 @@ def _solve(setup: Setup, q0: np.ndarray, terms, rot_terms, method: str, iteratio
         q[worse], t[worse] = q0[worse], setup.translations[worse]
     if terms is not None:  # the contact solve: the legs meet the contacts analytically ...
         began = time.perf_counter()
-        terms = solved_ankle_levels(setup, terms, fk_arrays(q, t, setup.rig.parents)[1])
+        contact_chain = with_ancestors(setup.rig.parents, terms.joints)  # what the ankles' heights need
+        terms = solved_ankle_levels(setup, terms, fk_of(q, t, setup.rig.parents, contact_chain)[1])
         legs = legs_of(setup.rig.parents, terms.joints, terms.target_contacts.parts, setup.offsets, setup.top)
         place = (setup.rig.parents, setup.anchor, legs, terms.planted, terms.target_contacts.contact, terms.level,
                  terms.up, terms.target_contacts.fps, terms.floor, body_weight(setup, terms))
