@@ -49,7 +49,7 @@ from usdmotion.ops.retarget.problem import (ADAM_ITERATIONS, ADAM_LR, LM_ATOL, L
                                             LM_LAMBDA_MIN, LM_RTOL, LM_RTOL_TOTAL, LM_UP, Problem)
 from usdmotion.ops.retarget.adam import make_adam
 from usdmotion.ops.retarget.dense_step import make_dense_step
-from usdmotion.ops.retarget.jax_runtime import frame_blocks, frame_mesh, frame_shards, use_cpu_cores
+from usdmotion.ops.retarget.jax_runtime import frame_blocks, frame_mesh, frame_shards, lower_stored, use_cpu_cores
 from usdmotion.ops.retarget.lm_model import make_model_gain
 from usdmotion.ops.retarget.rotation_terms import make_rotation_terms
 from usdmotion.ops.retarget.tree_step import make_tree_step
@@ -325,7 +325,7 @@ def _executable(problem: Problem, method: str, iterations: int, lr: float, args,
         return _EXECUTABLES[key], 0.0
     start = time.perf_counter()
     fn = _make_lm(problem, damping=damping, shards=shards) if method == "lm" else make_adam(problem, iterations, lr)
-    compiled = compile_lowered(fn.lower(*args))
+    compiled = compile_lowered(lower_stored(fn, args, key))
     if len(_EXECUTABLES) >= 32:
         _EXECUTABLES.pop(next(iter(_EXECUTABLES)))
     _EXECUTABLES[key] = compiled

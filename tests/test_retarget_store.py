@@ -1,0 +1,81 @@
+"""The store of traced solvers beside JAX's compilation cache (``jax_runtime.lower_stored``).
+
+Each case runs a small LM solve (48 walk frames, the paper's joints removed) in a fresh
+process, as a command does. Independent computation: the first process traces the solver;
+a later one must give the same bits without tracing it (``jax.export.export`` made to
+fail there), a changed code version must trace again into a second file, and a file cut
+short must be traced again and replaced.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+HERE = Path(__file__).resolve().parent
+REPO = HERE.parent
+WALK = REPO / "usdmotion" / "data" / "cmu_12_01_walk.bvh"
+
+CHILD = """
+import hashlib, json, sys, warnings
+sys.path.insert(0, {tests!r})
+import numpy as np
+from usdmotion.ops.retarget.jax_runtime import enable_compilation_cache
+import usdmotion.ops.retarget.jax_runtime as runtime
+enable_compilation_cache()
+mode = sys.argv[1]
+import jax
+if mode == "no-tracing":
+    def refuse(*args, **kwargs):
+        raise AssertionError("traced although the store holds the solver")
+    jax.export.export = refuse
+if mode == "new-code":
+    runtime._code_version = lambda: "another version of the code"
+from usdmotion.io import read_motion
+from usdmotion.ops.retarget.pipeline import _problem, prepare
+from usdmotion.ops.retarget.solve import solve
+from test_retarget import PAPER_REMOVE, frames
+with warnings.catch_warnings():
+    warnings.simplefilter("ignore")
+    walk = frames(read_motion({walk!r}), 100, 48)
+setup = prepare(walk, remove=list(PAPER_REMOVE))
+centre = setup.translations[:, 0]
+t0 = setup.translations.copy()
+t0[:, 0] -= centre
+s = solve(_problem(setup), setup.inits["compose"], t0, setup.targets[:, setup.mapped] - centre[:, None], shards=1)
+print(json.dumps({{"q": hashlib.sha256(np.ascontiguousarray(s.q).tobytes()).hexdigest(),
+                   "loss": float(s.loss.sum()), "iterations": s.iterations}}))
+"""
+
+
+def run(cache: Path, mode: str = "") -> dict:
+    env = {**os.environ, "USDMOTION_JAX_CACHE": str(cache), "PYTHONPATH": str(REPO)}
+    done = subprocess.run([sys.executable, "-c", CHILD.format(tests=str(HERE), walk=str(WALK)), mode],
+                          capture_output=True, text=True, env=env, timeout=600)
+    assert done.returncode == 0, done.stderr[-3000:]
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+@pytest.mark.skipif(not WALK.is_file(), reason="the bundled walk is missing")
+def test_a_later_process_reads_the_traced_solver_back_and_gets_the_same_bits(tmp_path):
+    cache = tmp_path / "jax"
+    first = run(cache)
+    files = sorted((cache / "exported").glob("*.jaxexport"))
+    assert len(files) == 1 and files[0].stat().st_size > 10_000
+    assert first["loss"] > 0 and first["iterations"] > 0
+
+    assert run(cache, "no-tracing") == first  # read back, not traced: the same bits
+
+    assert run(cache, "new-code") == first  # another code version: traced again, a file of its own
+    assert len(list((cache / "exported").glob("*.jaxexport"))) == 2
+
+    size = files[0].stat().st_size
+    files[0].write_bytes(files[0].read_bytes()[: size // 3])  # cut short: traced again and replaced
+    assert run(cache) == first
+    assert files[0].stat().st_size == size
+    assert not list((cache / "exported").glob(".*.tmp"))
