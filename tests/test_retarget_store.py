@@ -48,6 +48,14 @@ centre = setup.translations[:, 0]
 t0 = setup.translations.copy()
 t0[:, 0] -= centre
 s = solve(_problem(setup), setup.inits["compose"], t0, setup.targets[:, setup.mapped] - centre[:, None], shards=1)
+if mode == "x64-after":  # the float64 reference checks of the LM, in the same process after the store's export
+    import jax.numpy as jnp
+    from usdmotion.kinematics import fk_arrays
+    from usdmotion.ops.retarget.solve import make_residuals
+    problem = _problem(setup)
+    with jax.enable_x64(True):
+        world_p = make_residuals(problem)(*(jnp.asarray(a, jnp.float64) for a in (s.q, s.t, s.t[:, :1])))[1]
+    np.testing.assert_allclose(np.asarray(world_p), fk_arrays(s.q, s.t, problem.parents)[1], rtol=1e-12, atol=1e-9)
 print(json.dumps({{"q": hashlib.sha256(np.ascontiguousarray(s.q).tobytes()).hexdigest(),
                    "loss": float(s.loss.sum()), "iterations": s.iterations}}))
 """
@@ -79,3 +87,13 @@ def test_a_later_process_reads_the_traced_solver_back_and_gets_the_same_bits(tmp
     assert run(cache) == first
     assert files[0].stat().st_size == size
     assert not list((cache / "exported").glob(".*.tmp"))
+
+
+@pytest.mark.skipif(not WALK.is_file(), reason="the bundled walk is missing")
+def test_float64_checks_run_in_a_process_whose_solver_went_into_the_store(tmp_path):
+    """JAX keeps its conversion of a NumPy index array per array object, in the integer width
+    of its first use: forward kinematics' cached depth levels, traced by the store's export in
+    32-bit mode, failed (``lax.add``, int32 + int64) when the same process then ran forward
+    kinematics in 64-bit mode, as the float64 reference checks of the LM do. Independent
+    computation: NumPy's float64 positions of the solved frames."""
+    assert run(tmp_path / "jax", "x64-after")["iterations"] > 0

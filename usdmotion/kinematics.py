@@ -62,6 +62,11 @@ def _fk_levels(local_rotations, local_translations, parents: np.ndarray):
     """
     xp = array_namespace(local_rotations, local_translations)
     levels = depth_levels(parents)
+    if xp is not np:
+        # JAX keeps its conversion of a NumPy index array per array object, in the integer width of its first
+        # use: cached levels traced without 64-bit mode and then indexed with it (the float64 reference checks)
+        # fail in lax.add (int32 + int64). Fresh copies leave the cached ones to NumPy.
+        levels = tuple((idx.copy(), pos.copy()) for idx, pos in levels)
     q_local = xp.moveaxis(xp.asarray(local_rotations), -1, 0)  # strided views: a copy costs more than it saves
     t_local = xp.moveaxis(xp.asarray(local_translations), -1, 0)
     root_idx = levels[0][0]
