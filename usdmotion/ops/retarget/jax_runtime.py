@@ -103,7 +103,14 @@ def lower_stored(fn, args, key) -> object:
             blob = exported.serialize()
         except ImportError:  # serialization needs flatbuffers (a dependency): without it, trace every time
             return fn.lower(*args)
-        _write_atomically(path, blob)
+        from usdmotion.errors import OutputError
+        from usdmotion.io.atomic import atomic_output
+
+        try:  # all of the file or none of it: two batch workers may write it at once
+            with atomic_output(path) as temporary:
+                temporary.write_bytes(blob)
+        except OutputError:  # a cache folder it cannot write to: traced again next time
+            pass
     return jax.jit(exported.call).lower(*args)
 
 
@@ -131,17 +138,6 @@ def _code_version() -> str:
     for path in sorted(p for pattern in TRACED_SOURCES for p in package.glob(pattern)):
         digest.update(path.relative_to(package).as_posix().encode() + b"\0" + path.read_bytes())
     return digest.hexdigest()
-
-
-def _write_atomically(path: Path, blob: bytes) -> None:
-    """``blob`` into ``path`` through a temporary file beside it: a reader sees all of it or none
-    (two batch workers may write the same file); a folder it cannot write to is skipped."""
-    temporary = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        temporary.write_bytes(blob)
-        os.replace(temporary, path)
-    except OSError:
-        temporary.unlink(missing_ok=True)
 
 
 def frame_blocks(shards: int):

@@ -43,7 +43,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from usdmotion.kinematics import fk_arrays
-from usdmotion.ops.retarget.hierarchy import ancestor_matrix
+from usdmotion.ops.retarget.hierarchy import ancestor_matrix, with_ancestors
 from usdmotion.ops.retarget.problem import (ADAM_ITERATIONS, ADAM_LR, LM_ATOL, LM_DAMPING_UPDATE,
                                             LM_DAMPING_UPDATES, LM_DOWN, LM_ITERATIONS, LM_LAMBDA0, LM_LAMBDA_MAX,
                                             LM_LAMBDA_MIN, LM_RTOL, LM_RTOL_TOTAL, LM_UP, Problem)
@@ -477,9 +477,9 @@ def needed_joints(problem: Problem) -> tuple[Problem, np.ndarray]:
     before children). Large rigs carry many joints no mapped point hangs from (DAZ's and
     Rokoko's fingers, face and twist bones: 57 → 25 and 73 → 29 joints); their rotations
     and translations come back unchanged, so forward kinematics inside the solve skips them."""
-    used = np.zeros(len(problem.parents), bool)
-    used[np.concatenate([problem.points, problem.rot_joints, problem.trans_joints]).astype(np.int64)] = True
-    keep = used | (ancestor_matrix(problem.parents)[:, used].any(axis=1))
+    used = np.concatenate([problem.points, problem.rot_joints, problem.trans_joints])
+    keep = np.zeros(len(problem.parents), bool)
+    keep[with_ancestors(problem.parents, used)] = True
     if keep.all():
         return problem, keep
     new = np.cumsum(keep) - 1
