@@ -21,6 +21,19 @@ def shared_path(relative: str) -> Path:
     return path
 
 
+def walk_and_daz():
+    """``(walk, daz)``: the CMU walk (cgspeed, ASF units) and the DAZ rig's take, the
+    retargeting benchmark's walk → DAZ pair (skips when absent; reader warnings silenced)."""
+    import warnings
+
+    from usdmotion.io import read_motion
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return (read_motion(shared_path("cmu/cgspeed_12_01_walk.bvh"), units="asf"),
+                read_motion(shared_path("cmu/daz_10_01_soccer_kick.bvh")))
+
+
 @pytest.fixture
 def shared_file():
     """``shared_file("cmu/cgspeed_12_01_walk.bvh") -> Path`` (skips when absent)."""

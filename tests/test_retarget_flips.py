@@ -16,7 +16,6 @@ import pytest
 from usdmotion.kinematics import fk_arrays
 
 WALK = "cmu/cgspeed_12_01_walk.bvh"
-DAZ = "cmu/daz_10_01_soccer_kick.bvh"
 
 
 def largest_steps(rotations: np.ndarray) -> np.ndarray:
@@ -27,15 +26,11 @@ def largest_steps(rotations: np.ndarray) -> np.ndarray:
 
 @pytest.fixture(scope="module")
 def walk_onto_daz():
-    from conftest import shared_path
+    from conftest import walk_and_daz
 
-    from usdmotion.io import read_motion
     from usdmotion.ops.retarget.pipeline import retarget
 
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        walk = read_motion(shared_path(WALK), units="asf")
-        daz = read_motion(shared_path(DAZ))
+    walk, daz = walk_and_daz()
     # the benchmark's pair (frame 0, a T-pose, dropped): the DAZ hands stepped 6.9°/frame at frame
     # 190 and 7.5° at 158 where the limits are 4.2° and 5.4° (a cut lowers the limits: the
     # source's largest step over fewer frames)

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from usdmotion.kinematics import depth_levels, fk_arrays
+from usdmotion.ops.retarget.hierarchy import ancestor_matrix, with_ancestors
 from usdmotion.rotations import matrix_to_quat, quat_between, quat_conjugate, quat_mul, quat_rotate
 
 
@@ -15,13 +17,15 @@ def identity_quats(shape) -> np.ndarray:
 
 
 
-def _rays(rig, offsets: np.ndarray, mapped_mask: np.ndarray) -> list[list[tuple[int, np.ndarray]]]:
-    """Per joint: ``(d, rest vector from the joint to d)`` for its nearest mapped descendants."""
+def _rays(rig, offsets: np.ndarray, mapped_mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Every joint's nearest mapped descendants as padded arrays: ``(ends (J, R) int, rest
+    vectors (J, R, 3) from the joint to each end, count (J,))``; padding rows are ``(0, 0⃗)``
+    (``R`` the largest count, at least 1)."""
     children = [[] for _ in range(rig.n_joints)]
     for j in range(1, rig.n_joints):
         children[rig.parents[j]].append(j)
-    rays = []
-    for j in range(rig.n_joints):
+    found_all = []
+    for j in range(rig.n_joints):  # a walk of the hierarchy (no frames): setup, not a hot path
         found, stack = [], [(c, offsets[c]) for c in children[j]]
         while stack:
             c, v = stack.pop()
@@ -30,14 +34,21 @@ def _rays(rig, offsets: np.ndarray, mapped_mask: np.ndarray) -> list[list[tuple[
                     found.append((c, v))
             else:
                 stack.extend((g, v + offsets[g]) for g in children[c])
-        rays.append(found)
-    return rays
+        found_all.append(found)
+    count = np.array([len(found) for found in found_all], np.int64)
+    ends = np.zeros((rig.n_joints, max(1, int(count.max(initial=0)))), np.int64)
+    vectors = np.zeros(ends.shape + (3,))
+    for j, found in enumerate(found_all):
+        for r, (c, v) in enumerate(found):
+            ends[j, r], vectors[j, r] = c, v
+    return ends, vectors, count
 
 
 def aim_init(setup, copied: np.ndarray | None = None) -> np.ndarray:
     """Heuristic rotations ``(F, J, 4)``: every optimised joint aims its rest bone(s) at the
     source direction(s) of its nearest mapped descendants (one: shortest swing; several:
-    least-squares rotation, Kabsch), joint by joint from the root, all frames at once.
+    least-squares rotation, Kabsch), one depth level of joints at a time from the root, all
+    frames at once.
 
     One bone: the swing starts from the parent's frame (identity local rotation) or, with
     ``copied`` (the source's local rotations), from the copied rotation, whichever stays
@@ -48,22 +59,29 @@ def aim_init(setup, copied: np.ndarray | None = None) -> np.ndarray:
     n_frames = setup.targets.shape[0]
     mapped_mask = np.zeros(rig.n_joints, bool)
     mapped_mask[setup.mapped] = True
-    rays = _rays(rig, offsets, mapped_mask)
-    optimised = np.zeros(rig.n_joints, bool)
-    optimised[setup.rot_joints] = True
+    ends, vectors, count = _rays(rig, offsets, mapped_mask)
+    aimed = np.zeros(rig.n_joints, bool)
+    aimed[setup.rot_joints] = True
+    aimed &= count > 0
     local = identity_quats((n_frames, rig.n_joints))
     world_q = identity_quats((n_frames, rig.n_joints))
     world_p = np.zeros((n_frames, rig.n_joints, 3))
-    for j in range(rig.n_joints):
-        p = rig.parents[j]
-        parent_q = world_q[:, p] if p >= 0 else identity_quats((n_frames,))
-        parent_p = world_p[:, p] if p >= 0 else np.zeros((n_frames, 3))
-        world_p[:, j] = parent_p + quat_rotate(parent_q, setup.translations[:, j])
-        if optimised[j] and rays[j]:
-            bases = [parent_q] if copied is None else [parent_q, quat_mul(parent_q, copied[:, j])]
-            local[:, j] = quat_mul(quat_conjugate(parent_q), _aim(bases, world_p[:, j], rays[j], setup.targets))
-        world_q[:, j] = quat_mul(parent_q, local[:, j])
-    return local
+    placed = np.zeros(rig.n_joints, bool)  # what the aimed joints need: they and their ancestors
+    placed[with_ancestors(rig.parents, np.flatnonzero(aimed))] = True
+    for level, _ in depth_levels(rig.parents):  # parents of a level are all placed
+        level = level[placed[level]]
+        parents = rig.parents[level]
+        parent_q = np.where((parents >= 0)[:, None], world_q[:, parents], identity_quats((1, len(level))))
+        parent_p = np.where((parents >= 0)[:, None], world_p[:, parents], 0.0)
+        world_p[:, level] = parent_p + quat_rotate(parent_q, setup.translations[:, level])
+        k = np.flatnonzero(aimed[level])
+        if len(k):
+            joints, base = level[k], parent_q[:, k]
+            bases = [base] if copied is None else [base, quat_mul(base, copied[:, joints])]
+            world = _aim(bases, world_p[:, joints], ends[joints], vectors[joints], count[joints], setup.targets)
+            local[:, joints] = quat_mul(quat_conjugate(base), world)
+        world_q[:, level] = quat_mul(parent_q, local[:, level])
+    return local  # joints not aimed keep the identity: their parent's frame
 
 
 #: Several rays count as one direction (swing, not Kabsch) when the second singular value
@@ -73,43 +91,49 @@ COLLINEAR = 0.05
 
 
 def _swing(bases, u, v) -> np.ndarray:
-    """World rotations ``(F, 4)`` turning rest vector ``u (3,)`` carried by one of ``bases``
-    (``(F, 4)`` world rotations) onto ``v (F, 3)`` by the shortest arc; the base whose
-    largest swing over the take is smallest. A further base is always tried: the parent's
-    frame (``bases[0]``) turned once, for the whole take, so ``u`` points along the mean
-    direction of ``v`` in that frame — its swings stay far from a half turn unless the
-    bone sweeps more than a hemisphere around its parent."""
-    mean = np.sum(quat_rotate(quat_conjugate(bases[0]), v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True),
-                                                                        1e-300)), axis=0)
-    if np.linalg.norm(mean) > 1e-9 and np.linalg.norm(u) > 1e-12:
-        bases = [*bases, quat_mul(bases[0], quat_between(u, mean))]
-    best, best_angle = None, np.inf
-    for base in bases:
-        carried = quat_rotate(base, u)
-        cos = np.sum(carried * v, -1) / np.maximum(np.linalg.norm(carried, axis=-1) * np.linalg.norm(v, axis=-1),
-                                                   1e-300)
-        angle = float(np.arccos(np.clip(cos, -1.0, 1.0)).max())
-        if angle < best_angle - 1e-9:
-            best, best_angle = quat_mul(quat_between(carried, v), base), angle
-    return best
+    """World rotations ``(F, K, 4)`` turning each joint's rest vector ``u (K, 3)`` carried by
+    one of ``bases`` (``(F, K, 4)`` world rotations) onto ``v (F, K, 3)`` by the shortest arc;
+    per joint, the base whose largest swing over the take is smallest (the first of equals).
+    A further base is always tried: the parent's frame (``bases[0]``) turned once, for the
+    whole take, so ``u`` points along the mean direction of ``v`` in that frame — its swings
+    stay far from a half turn unless the bone sweeps more than a hemisphere around its parent."""
+    length = np.linalg.norm(v, axis=-1, keepdims=True)
+    mean = np.sum(quat_rotate(quat_conjugate(bases[0]), v / np.maximum(length, 1e-300)), axis=0)  # (K, 3)
+    turnable = (np.linalg.norm(mean, axis=-1) > 1e-9) & (np.linalg.norm(u, axis=-1) > 1e-12)
+    ones = np.array([1.0, 0.0, 0.0])
+    turn = quat_between(np.where(turnable[:, None], u, ones), np.where(turnable[:, None], mean, ones))
+    candidates = np.stack([*bases, quat_mul(bases[0], turn)])  # (C, F, K, 4)
+    carried = quat_rotate(candidates, u)  # (C, F, K, 3)
+    cos = np.sum(carried * v, -1) / np.maximum(np.linalg.norm(carried, axis=-1) * length[..., 0], 1e-300)
+    angle = np.arccos(np.clip(cos, -1.0, 1.0)).max(axis=1)  # (C, K): the largest swing over the take
+    angle[-1, ~turnable] = np.inf
+    chosen = np.zeros(len(u), np.int64)
+    for i in range(1, len(candidates)):  # a later base only where it beats the chosen one by more than 1e-9
+        chosen = np.where(angle[i] < angle[chosen, np.arange(len(u))] - 1e-9, i, chosen)
+    k = np.arange(len(u))
+    return quat_mul(quat_between(carried[chosen, :, k].swapaxes(0, 1), v), candidates[chosen, :, k].swapaxes(0, 1))
 
 
-def _aim(bases, origin, rays, targets) -> np.ndarray:
-    """World rotation ``(F, 4)`` aiming rest vectors (joint frame) at target directions;
-    ``bases[0]`` is the parent's world rotation."""
-    u = np.stack([v for _, v in rays])  # (R, 3) joint frame
-    v = np.stack([targets[:, d] - origin for d, _ in rays], axis=1)  # (F, R, 3) world
-    swing = _swing(bases, u.sum(axis=0), v.sum(axis=1))
-    if len(rays) < 2:
+def _aim(bases, origin, ends, vectors, count, targets) -> np.ndarray:
+    """World rotations ``(F, K, 4)`` of ``K`` joints aiming their rest vectors (joint frame;
+    ``ends (K, R)``, ``vectors (K, R, 3)``, ``count (K,)`` from :func:`_rays`) from
+    ``origin (F, K, 3)`` at their ends' ``targets``; ``bases[0]`` (``(F, K, 4)``) is the
+    parents' world rotation."""
+    real = np.arange(ends.shape[1]) < count[:, None]  # (K, R)
+    v = np.where(real[..., None], targets[:, ends] - origin[:, :, None], 0.0)  # (F, K, R, 3) world
+    swing = _swing(bases, vectors.sum(axis=1), v.sum(axis=2))
+    several = np.flatnonzero(count >= 2)
+    if not len(several):
         return swing
-    h = np.einsum("frk,rl->fkl", v, u)  # Σ v uᵀ
+    h = np.einsum("fkrx,kry->fkxy", v[:, several], vectors[several])  # Σ v uᵀ
     w_, s, vt = np.linalg.svd(h)
     d = np.sign(np.linalg.det(w_ @ vt))
-    fix = np.ones((len(d), 3))
-    fix[:, 2] = d
-    kabsch = matrix_to_quat(w_ @ (fix[:, :, None] * vt))
-    planar = s[:, 1] > COLLINEAR * np.maximum(s[:, 0], 1e-300)
-    return np.where(planar[:, None], kabsch, swing)
+    fix = np.ones(d.shape + (3,))
+    fix[..., 2] = d
+    kabsch = matrix_to_quat(w_ @ (fix[..., :, None] * vt))
+    planar = s[..., 1] > COLLINEAR * np.maximum(s[..., 0], 1e-300)
+    swing[:, several] = np.where(planar[..., None], kabsch, swing[:, several])
+    return swing
 
 
 def aim_single_points(setup, q: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -123,9 +147,6 @@ def aim_single_points(setup, q: np.ndarray, t: np.ndarray) -> np.ndarray:
     that moves one point near the joint barely shows in it, so such bones stopped anywhere
     short of their target — at a different place in neighbouring frames: CMU walk → DAZ
     hands stepped 7°/frame where the source's step ≤ 2°. The swing keeps the twist."""
-    from usdmotion.kinematics import fk_arrays
-    from usdmotion.ops.retarget.hierarchy import ancestor_matrix
-
     rig, mapped = setup.rig, setup.mapped
     below = ancestor_matrix(rig.parents)[:, mapped]  # (J, M): mapped strict descendants
     single = {int(j) for j in setup.rot_joints if below[j].sum() == 1}
