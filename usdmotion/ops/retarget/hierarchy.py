@@ -119,6 +119,15 @@ def with_ancestors(parents: np.ndarray, joints) -> np.ndarray:
     return np.flatnonzero(keep)
 
 
+def restricted_parents(parents: np.ndarray, joints: np.ndarray) -> np.ndarray:
+    """``(K,)`` parents of the sub-skeleton of ``joints`` (sorted, closed under parents, e.g.
+    :func:`with_ancestors`), as positions in ``joints`` (-1: a root): forward kinematics of
+    ``q[:, joints]`` with them gives those joints' world transforms."""
+    position = np.full(len(parents), -1)
+    position[joints] = np.arange(len(joints))
+    return np.where(parents[joints] >= 0, position[np.maximum(parents[joints], 0)], -1)
+
+
 def rig_from_motion(motion: Motion, path: str | None = None) -> Rig:
     """The skeleton of a motion as a :class:`Rig` (its animation is dropped)."""
     animated = np.zeros(motion.n_joints, bool)

@@ -35,7 +35,7 @@ import numpy as np
 
 from usdmotion.kinematics import fk_arrays
 from usdmotion.ops.contacts.detect import runs
-from usdmotion.ops.retarget.hierarchy import ancestor_matrix, with_ancestors
+from usdmotion.ops.retarget.hierarchy import ancestor_matrix, restricted_parents, with_ancestors
 from usdmotion.ops.retarget.leg_reach import REACH, leg_reach, lower_root, root_drop, with_hip_spikes
 from usdmotion.rotations import cross, quat_conjugate, quat_mul, quat_normalize, quat_rotate
 from usdmotion.skeleton_names import descendants
@@ -353,10 +353,7 @@ def fk_of(q: np.ndarray, t: np.ndarray, parents: np.ndarray, joints: np.ndarray)
     """:func:`~usdmotion.kinematics.fk_arrays` of ``joints`` only (closed under parents: the same
     numbers as the whole skeleton's), in arrays of every joint (the others identity and 0):
     the leg IK needs the legs and what carries them, ~1/5 of a 70-joint rig."""
-    position = np.full(len(parents), -1)
-    position[joints] = np.arange(len(joints))
-    sub = np.where(parents[joints] >= 0, position[np.maximum(parents[joints], 0)], -1)
-    sub_q, sub_p = fk_arrays(q[:, joints], t[:, joints], sub)
+    sub_q, sub_p = fk_arrays(q[:, joints], t[:, joints], restricted_parents(parents, joints))
     world_q = np.zeros(q.shape)
     world_q[..., 0] = 1.0
     world_p = np.zeros(t.shape)

@@ -43,7 +43,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from usdmotion.kinematics import fk_arrays
-from usdmotion.ops.retarget.hierarchy import ancestor_matrix, with_ancestors
+from usdmotion.ops.retarget.hierarchy import ancestor_matrix, restricted_parents, with_ancestors
 from usdmotion.ops.retarget.problem import (ADAM_ITERATIONS, ADAM_LR, LM_ATOL, LM_DAMPING_UPDATE,
                                             LM_DAMPING_UPDATES, LM_DOWN, LM_ITERATIONS, LM_LAMBDA0, LM_LAMBDA_MAX,
                                             LM_LAMBDA_MIN, LM_RTOL, LM_RTOL_TOTAL, LM_UP, Problem)
@@ -478,14 +478,13 @@ def needed_joints(problem: Problem) -> tuple[Problem, np.ndarray]:
     Rokoko's fingers, face and twist bones: 57 → 25 and 73 → 29 joints); their rotations
     and translations come back unchanged, so forward kinematics inside the solve skips them."""
     used = np.concatenate([problem.points, problem.rot_joints, problem.trans_joints])
+    joints = with_ancestors(problem.parents, used)
     keep = np.zeros(len(problem.parents), bool)
-    keep[with_ancestors(problem.parents, used)] = True
+    keep[joints] = True
     if keep.all():
         return problem, keep
-    new = np.cumsum(keep) - 1
-    parents = problem.parents[keep]
-    renumber = lambda joints: new[np.asarray(joints, np.int64)]  # noqa: E731
+    renumber = lambda j: np.searchsorted(joints, np.asarray(j, np.int64))  # noqa: E731
     return replace(
-        problem, parents=np.where(parents < 0, -1, new[np.maximum(parents, 0)]), mapped=renumber(problem.mapped),
+        problem, parents=restricted_parents(problem.parents, joints), mapped=renumber(problem.mapped),
         rot_joints=renumber(problem.rot_joints), trans_joints=renumber(problem.trans_joints),
         contact_joints=renumber(problem.contact_joints), floor_joints=renumber(problem.floor_joints)), keep
