@@ -61,8 +61,8 @@ print(json.dumps({{"q": hashlib.sha256(np.ascontiguousarray(s.q).tobytes()).hexd
 """
 
 
-def run(cache: Path, mode: str = "") -> dict:
-    env = {**os.environ, "USDMOTION_JAX_CACHE": str(cache), "PYTHONPATH": str(REPO)}
+def run(cache: Path, mode: str = "", **environ) -> dict:
+    env = {**os.environ, "USDMOTION_JAX_CACHE": str(cache), "PYTHONPATH": str(REPO), **environ}
     done = subprocess.run([sys.executable, "-c", CHILD.format(tests=str(HERE), walk=str(WALK)), mode],
                           capture_output=True, text=True, env=env, timeout=600)
     assert done.returncode == 0, done.stderr[-3000:]
@@ -97,3 +97,46 @@ def test_float64_checks_run_in_a_process_whose_solver_went_into_the_store(tmp_pa
     kinematics in 64-bit mode, as the float64 reference checks of the LM do. Independent
     computation: NumPy's float64 positions of the solved frames."""
     assert run(tmp_path / "jax", "x64-after")["iterations"] > 0
+
+
+def _entry(path: Path, size: int, age_s: float, now: float) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(b"x" * size)
+    os.utime(path, (now - age_s, now - age_s))
+    return path
+
+
+def test_trim_removes_the_least_recently_used_entries_down_to_three_quarters(tmp_path):
+    """Ten 100 kB entries (compiled executables and traced solvers), used 1..10 hours ago,
+    and one written a minute ago, against a 700 kB limit: the oldest go until 3/4 of the
+    limit is left (525 kB: five 100 kB files and the new one); the new one stays though it
+    alone would not fit a lower limit; files of other names are not touched."""
+    from usdmotion.ops.retarget.jax_runtime import trim_cache
+
+    now = 1.8e9
+    old = [_entry(tmp_path / (f"jit_f{i}-cache" if i % 2 else f"exported/s{i}.jaxexport"), 100_000, 3600.0 * (i + 1),
+                  now) for i in range(10)]
+    fresh = _entry(tmp_path / "jit_new-cache", 100_000, 60.0, now)
+    other = _entry(tmp_path / "notes.txt", 100_000, 1e6, now)
+    assert trim_cache(tmp_path, 2_000_000, now) == 0  # under the limit: nothing
+    assert trim_cache(tmp_path, 700_000, now) == 600_000
+    assert [p.exists() for p in old] == [True] * 4 + [False] * 6  # the six oldest (used 5..10 hours ago)
+    assert fresh.exists() and other.exists()
+    assert trim_cache(tmp_path, 0, now) == 400_000  # everything but what was used in the last 10 minutes
+    assert fresh.exists() and not any(p.exists() for p in old)
+
+
+@pytest.mark.skipif(not WALK.is_file(), reason="the bundled walk is missing")
+def test_a_command_keeps_the_cache_folder_under_its_bound(tmp_path):
+    """A process started with ``USDMOTION_JAX_CACHE_MB`` below what the folder holds removes
+    the entries unused for long (here: made a day old) and still solves, to the same bits."""
+    cache = tmp_path / "jax"
+    first = run(cache)
+    entries = [*cache.glob("*-cache"), *(cache / "exported").glob("*.jaxexport")]
+    assert entries
+    day_ago = entries[0].stat().st_mtime - 86_400
+    for path in entries:
+        os.utime(path, (day_ago, day_ago))
+    assert run(cache, USDMOTION_JAX_CACHE_MB="0.001") == first  # trimmed at start, then compiled and traced again
+    assert not any(p.exists() and p.stat().st_mtime == day_ago for p in entries)
+    assert list((cache / "exported").glob("*.jaxexport"))  # the new process's own entries are there

@@ -52,7 +52,8 @@ def enable_compilation_cache() -> str | None:
     Folder: ``$USDMOTION_JAX_CACHE``, else ``$XDG_CACHE_HOME/usdmotion/jax`` (default
     ``~/.cache/usdmotion/jax``); ``USDMOTION_JAX_CACHE=off`` disables it. A cache folder
     the user already configured for JAX is left alone. Repeat runs on the same skeletons
-    then skip most of the XLA compile time.
+    then skip most of the XLA compile time. The folder is kept under
+    ``$USDMOTION_JAX_CACHE_MB`` megabytes (default :data:`CACHE_MB`) by :func:`trim_cache`.
     """
 
     import jax
@@ -68,7 +69,53 @@ def enable_compilation_cache() -> str | None:
         return None
     jax.config.update("jax_compilation_cache_dir", str(folder))
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+    try:
+        megabytes = float(os.environ.get("USDMOTION_JAX_CACHE_MB") or CACHE_MB)
+    except ValueError:
+        megabytes = CACHE_MB
+    trim_cache(folder, int(max(megabytes, 0.0) * 1e6))
     return str(folder)
+
+
+#: Default size bound of the compilation cache folder, in megabytes (an executable is
+#: 0.1–1 MB, its traced solver ~0.1 MB: a few thousand skeleton pairs and chunk sizes).
+CACHE_MB = 2000
+#: Entries used more recently than this many seconds are never removed (another process
+#: may be reading or writing them).
+CACHE_KEEP_RECENT_S = 600.0
+
+
+def trim_cache(folder: Path, limit_bytes: int, now: float | None = None) -> int:
+    """Keep the compilation cache ``folder`` (JAX's ``*-cache`` entries and the traced
+    solvers in ``exported/``) under ``limit_bytes``: when it holds more, the least recently
+    used files (by access or modification time, whichever is later) are removed until it
+    holds 3/4 of the limit; files used in the last :data:`CACHE_KEEP_RECENT_S` seconds are
+    kept. A removed entry is compiled or traced again when next needed. Returns the bytes
+    removed (files that cannot be read or removed are left alone)."""
+    import time
+
+    entries = []
+    for pattern in ("*-cache", "exported/*.jaxexport"):
+        for path in Path(folder).glob(pattern):
+            try:
+                stat = path.stat()
+            except OSError:
+                continue
+            entries.append((max(stat.st_atime, stat.st_mtime), stat.st_size, path))
+    total = sum(size for _, size, _ in entries)
+    if total <= limit_bytes:
+        return 0
+    now = time.time() if now is None else now
+    removed = 0
+    for used, size, path in sorted(entries, key=lambda entry: entry[0]):
+        if total - removed <= 0.75 * limit_bytes or used > now - CACHE_KEEP_RECENT_S:
+            break
+        try:
+            path.unlink()
+        except OSError:
+            continue
+        removed += size
+    return removed
 
 
 #: Sources whose code the solvers trace (:func:`lower_stored` keys its files by them).
