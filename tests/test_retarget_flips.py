@@ -9,12 +9,14 @@ each target joint follows per the report's map), not the report's own figures.
 from __future__ import annotations
 
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from usdmotion.kinematics import fk_arrays
 
+REPO = Path(__file__).resolve().parents[1]
 WALK = "cmu/cgspeed_12_01_walk.bvh"
 
 
@@ -186,3 +188,31 @@ def test_step_limit_of_a_joint_whose_source_chain_the_target_lacks():
     assert limits["Spine"] == pytest.approx(max(composed, STEP_FLOOR_DEG), rel=1e-9)
     for name in ("LeftLeg", "Spine1"):  # chains the target keeps: the joint's own local rotation
         assert limits[name] == pytest.approx(max(2 * largest_steps(rot[name][:, None])[0], STEP_FLOOR_DEG), rel=1e-9)
+
+
+def test_no_step_across_a_leading_t_pose_frame_counts():
+    """cgspeed's CMU walk starts with a synthetic T-pose frame: every joint jumps into the walk
+    at the first step, and a target chain shares that jump differently from the source's joints.
+    The quality's steps and limits start at frame 1 then (``steps_from_frame``); with the
+    T-pose frame cut off they start at 0. Independent computation: the largest step of each
+    written rotation over frames 1.. (or 0..) of the result, by NumPy here."""
+    from test_retarget import PAPER_REMOVE, frames
+
+    from usdmotion.io import read_motion
+    from usdmotion.kinematics import first_frame_jumps
+    from usdmotion.ops.retarget.pipeline import retarget
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        walk = read_motion(REPO / "usdmotion" / "data" / "cmu_12_01_walk.bvh", units="asf")
+    with_pose, without = frames(walk, 0, 49), frames(walk, 1, 48)
+    assert first_frame_jumps(with_pose) and not first_frame_jumps(without)
+    for source, start in ((with_pose, 1), (without, 0)):
+        result = retarget(source, remove=PAPER_REMOVE)
+        quality = result.report["quality"]
+        assert quality["steps_from_frame"] == start
+        steps = largest_steps(result.motion.rotations[start:])
+        reported = quality["rotation_steps"]
+        names = result.motion.joint_names
+        for j in np.flatnonzero(~result.motion.end_sites):
+            assert reported[names[j]]["step_deg"] == pytest.approx(steps[j], abs=1e-3), names[j]

@@ -158,6 +158,21 @@ def joint_positions(motion: Motion) -> np.ndarray:
     return world_rotations_positions(motion)[1]
 
 
+def first_frame_jumps(motion: Motion, factor: float = 10.0) -> bool:
+    """True when the step from frame 0 to 1 is ``factor`` times larger than any later step
+    (the largest joint move per step, over the first 600 frames).
+
+    cgspeed's CMU conversions start with a synthetic T-pose frame; derivatives and rotation
+    steps across it are meaningless spikes.
+    """
+    if motion.n_frames < 4:
+        return False
+    head = joint_positions(motion.sliced(0, min(motion.n_frames, 600)))
+    steps = np.linalg.norm(np.diff(head, axis=0), axis=-1).max(axis=1)  # largest joint move per step
+    later = float(np.max(steps[1:]))
+    return bool(steps[0] > factor * later) if later > 0 else bool(steps[0] > 0)
+
+
 def fk(motion: Motion) -> np.ndarray:
     """World transforms ``T_world_joint`` ``(F, J, 4, 4)`` (column vectors, file units)."""
     world_q, world_p = world_rotations_positions(motion)

@@ -67,29 +67,11 @@ def frame_slice(spec: str | None, n_frames: int) -> tuple[int, int]:
     return start, stop
 
 
-def first_frame_jumps(motion, factor: float = 10.0) -> bool:
-    """True when the step from frame 0 to 1 is ``factor`` times larger than any later step.
-
-    cgspeed's CMU conversions start with a synthetic T-pose frame; derivatives across it
-    are meaningless spikes.
-    """
-    import numpy as np  # deferred: loading the CLI (every command, --version) must not import NumPy
-
-    from usdmotion.kinematics import joint_positions
-    from usdmotion.ops.analyse.measures import slice_frames
-
-    if motion.n_frames < 4:
-        return False
-    head = joint_positions(slice_frames(motion, 0, min(motion.n_frames, 600)))
-    steps = np.linalg.norm(np.diff(head, axis=0), axis=-1).max(axis=1)  # largest joint move per step
-    later = float(np.max(steps[1:]))
-    return bool(steps[0] > factor * later) if later > 0 else bool(steps[0] > 0)
-
-
 def prepare(path: Path, read: ReadOptions, frames: str | None):
     """``(motion sliced to --frames, first frame)``; warns about a leading rest-pose frame."""
     import warnings
 
+    from usdmotion.kinematics import first_frame_jumps
     from usdmotion.ops.analyse.measures import slice_frames
 
     motion = read_any(path, read)

@@ -8,7 +8,11 @@
   the composition of source joints the target lacks, see :func:`followed_rotations`),
   or for joints no source joint drives 30° per frame at 120 fps
   (scaled by the frame rate); never below :data:`STEP_FLOOR_DEG` at 120 fps (a joint the
-  source barely moves may still be moved a little). ``flips`` lists the joints above it;
+  source barely moves may still be moved a little). ``flips`` lists the joints above it.
+  Steps are counted from ``steps_from_frame``: 1 where the source starts with a frame it
+  jumps from (cgspeed's synthetic T-pose, :func:`usdmotion.kinematics.first_frame_jumps`):
+  the whole body jumps there, and the target's chains share that jump differently from the
+  source's joints (CMU walk → DAZ: the hand 12°, the hip 14° at that one step), else 0;
 * with contacts, ``feet`` (:func:`usdmotion.ops.contacts.foot_metrics` on the target's
   contact joints: skate cm/s, penetration and floating against the planted level) and
   ``floor`` (the lowest of all moved joints against the floor: max depth cm, frames deeper
@@ -19,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from usdmotion.kinematics import fk_arrays, local_translations
+from usdmotion.kinematics import first_frame_jumps, fk_arrays, local_translations
 from usdmotion.motion import Motion
 from usdmotion.rotations import quat_conjugate, quat_mul
 
@@ -74,13 +78,14 @@ def followed_rotations(source: Motion, setup) -> tuple[np.ndarray, np.ndarray]:
     return joints, rotations
 
 
-def step_limits(source: Motion, setup) -> np.ndarray:
+def step_limits(source: Motion, setup, start: int = 0) -> np.ndarray:
     """``(J,)`` allowed step per target joint (degrees per frame, see the module docstring):
-    twice the largest step of the rotation it follows (:func:`followed_rotations`)."""
+    twice the largest step of the rotation it follows (:func:`followed_rotations`) from
+    frame ``start`` on."""
     per_frame = 120.0 / source.fps
     joints, followed = followed_rotations(source, setup)
     limit = np.full(setup.rig.n_joints, UNMAPPED_STEP_DEG * per_frame)
-    limit[joints] = np.maximum(2.0 * rotation_steps(followed), STEP_FLOOR_DEG * per_frame)
+    limit[joints] = np.maximum(2.0 * rotation_steps(followed[start:]), STEP_FLOOR_DEG * per_frame)
     return limit
 
 
@@ -90,8 +95,9 @@ def quality(source: Motion, setup, motion: Motion, terms=None) -> dict:
     world = fk_arrays(motion.rotations, local_translations(motion), rig.parents)[1]
     cm = motion.meters_per_unit * 100.0
     err = np.linalg.norm(world[:, mapped] - setup.targets[:, mapped], axis=-1)
-    steps = rotation_steps(motion.rotations)
-    limits = step_limits(source, setup)
+    start = 1 if first_frame_jumps(source) else 0  # no step across a leading T-pose frame counts
+    steps = rotation_steps(motion.rotations[start:])
+    limits = step_limits(source, setup, start)
     live = ~rig.end_sites
     flips = {rig.joint_names[j]: {"step_deg": float(steps[j]), "limit_deg": float(limits[j])}
              for j in np.flatnonzero(live & (steps > limits))}
@@ -101,6 +107,7 @@ def quality(source: Motion, setup, motion: Motion, terms=None) -> dict:
                                                 "limit_deg": round(float(limits[j]), 3)}
                            for j in np.flatnonzero(live)},
         "flips": flips,
+        "steps_from_frame": start,
     }
     if terms is not None:
         from usdmotion.ops.contacts import foot_metrics
