@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from usdmotion.io import read_motion
-from usdmotion.kinematics import fk_arrays, joint_positions
+from usdmotion.kinematics import fk_arrays, joint_positions, local_translations
 from usdmotion.motion import Motion
 from usdmotion.ops.retarget.hierarchy import AddSpec, derive_rig, rig_from_motion
 from usdmotion.ops.retarget.pipeline import frame_losses, prepare, retarget
@@ -358,6 +358,27 @@ def test_bandai_source_zero_length_end_sites_and_animated_hips(shared_file):
     # its per-frame translation is the exact source one
     np.testing.assert_allclose(setup.translations[:, hips], bandai.joint_translations[:, bandai.joint_index("Hips")],
                                atol=1e-9)
+
+
+def test_lm_keeps_going_while_its_first_steps_are_rejected(shared_file):
+    """AnimatedDrawings' karate BVH read as it is (its thorax and head position channels hold
+    world positions: the skeleton is distorted, the reader warns) onto the Rokoko rig: the
+    targets lie far from any pose of the target, and the LM's first two steps were rejected.
+    Two rejections counted as convergence, so the LM stopped after 2 iterations with the
+    loss unchanged (100.0 % of the initial guess, RMS 107 cm, exit 0); rejections now only
+    raise λ until a frame has moved. Independent computation: the float64 loss of the
+    initial guess and of the result, by NumPy forward kinematics."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        karate = frames(read_motion(shared_file("other_rigs/ad_karate_mawashigeri.bvh")), 0, 16)
+        rokoko = read_motion(shared_file("other_rigs/ad_rokoko_jesse_dance.bvh"))
+    result = retarget(karate, rokoko)
+    setup = prepare(karate, rokoko)
+    args = (rokoko.parents, setup.mapped, setup.targets, setup.weights)
+    start = frame_losses(setup.translations, setup.inits[result.report["init"]], *args).sum()
+    final = frame_losses(local_translations(result.motion), result.motion.rotations, *args).sum()
+    assert result.report["iterations_run"] > 2
+    assert final < 0.9 * start
 
 
 # ----------------------------------------------------------------- methods, modes

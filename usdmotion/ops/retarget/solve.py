@@ -212,6 +212,7 @@ def _make_lm(problem: Problem, linear: str = "tree", damping: str = LM_DAMPING_U
         lam = jnp.full(loss.shape, LM_LAMBDA0, loss.dtype)
         nu = jnp.full(loss.shape, 2.0, loss.dtype)  # Nielsen's factor for the next rejection
         stall = jnp.zeros(loss.shape, jnp.int32)  # iterations in a row without real progress
+        moved = jnp.zeros(loss.shape, bool)  # a step of the frame was accepted (or λ reached its largest)
 
         def cond(carry):
             i, loss, stall, flat = carry[0], carry[6], carry[8], carry[9]
@@ -219,7 +220,7 @@ def _make_lm(problem: Problem, linear: str = "tree", damping: str = LM_DAMPING_U
             return (i < iterations) & (total(jnp.sum(~frames_done)) > 0) & (flat < 2)
 
         def body(carry):
-            i, q, t, world_q, world_p, r, loss, lam, stall, flat, w_all, nu, rot_r = carry
+            i, q, t, world_q, world_p, r, loss, lam, stall, flat, w_all, nu, rot_r, moved = carry
             rot_w = mid = None
             if problem.smoothing:  # neighbours held for this iteration (Jacobi over time)
                 mid = smoothness.midpoints(world_q)
@@ -237,15 +238,19 @@ def _make_lm(problem: Problem, linear: str = "tree", damping: str = LM_DAMPING_U
                 loss2 = loss2 + s_loss2
             ok = (loss2 < loss) & jnp.isfinite(loss2)
             gain = jnp.where(ok, (loss - loss2) / jnp.maximum(loss, 1e-30), 0.0)
-            if stiff:  # a rejected step only raises λ: a frame has stalled when accepted steps gain nothing
-                stall = jnp.where(gain > LM_RTOL, 0, jnp.where(ok | (lam >= LM_LAMBDA_MAX), stall + 1, stall))
-            else:
-                stall = jnp.where(gain > LM_RTOL, 0, stall + 1)
+            # a rejected step only raises λ until the frame has moved (a step accepted, or λ at its
+            # largest): a start far from the targets can need several (a distorted source: the LM
+            # stopped after two rejections without any gain); with contact or floor terms, which
+            # weigh 100–1000× the positions, rejections never count, as λ adapts all the way
+            counts = ok | (lam >= LM_LAMBDA_MAX) if stiff else ok | moved | (lam >= LM_LAMBDA_MAX)
+            stall = jnp.where(gain > LM_RTOL, 0, jnp.where(counts, stall + 1, stall))
+            moved = moved | ok | (lam >= LM_LAMBDA_MAX)
             pick = lambda new, old: jnp.where(ok.reshape((-1,) + (1,) * (new.ndim - 1)), new, old)  # noqa: E731
             new_loss = pick(loss2, loss)
             before, after = total(jnp.sum(loss)), total(jnp.sum(new_loss))
             total_gain = (before - after) / jnp.maximum(before, 1e-30)
-            flat = jnp.where(total_gain < LM_RTOL_TOTAL, flat + 1, 0)
+            waiting = total(jnp.sum(~moved)) > 0  # frames still looking for their first step
+            flat = jnp.where((total_gain < LM_RTOL_TOTAL) & ~waiting, flat + 1, 0)
             if nielsen:  # ρ = actual / predicted reduction (see problem.LM_DAMPING_UPDATE)
                 rho = (loss - loss2) / jnp.maximum(predicted, 1e-30 * jnp.maximum(loss, 1e-30))
                 shrink = jnp.maximum(1.0 / 3.0, 1.0 - (2.0 * jnp.clip(rho, 0.0, 1.0) - 1.0) ** 3)
@@ -254,10 +259,10 @@ def _make_lm(problem: Problem, linear: str = "tree", damping: str = LM_DAMPING_U
             else:
                 lam = jnp.clip(jnp.where(ok, lam * LM_DOWN, lam * LM_UP), LM_LAMBDA_MIN, LM_LAMBDA_MAX)
             return (i + 1, pick(q2, q), pick(t2, t), pick(world_q2, world_q), pick(world_p2, world_p), pick(r2, r),
-                    new_loss, lam, stall, flat, pick(w2, w_all), nu, pick(rot_r2, rot_r))
+                    new_loss, lam, stall, flat, pick(w2, w_all), nu, pick(rot_r2, rot_r), moved)
 
         carry = jax.lax.while_loop(cond, body, (jnp.int32(0), q, t, world_q, world_p, r, loss, lam, stall,
-                                                jnp.int32(0), w_all, nu, rot_r))
+                                                jnp.int32(0), w_all, nu, rot_r, moved))
         return carry[1], carry[2], carry[6], initial, carry[0]
 
     if not axis:
