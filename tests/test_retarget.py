@@ -12,6 +12,7 @@ import warnings
 import numpy as np
 import pytest
 
+from usdmotion.errors import UsdMotionWarning
 from usdmotion.io import read_motion
 from usdmotion.kinematics import fk_arrays, joint_positions, local_translations
 from usdmotion.motion import Motion
@@ -372,13 +373,42 @@ def test_lm_keeps_going_while_its_first_steps_are_rejected(shared_file):
         warnings.simplefilter("ignore")
         karate = frames(read_motion(shared_file("other_rigs/ad_karate_mawashigeri.bvh")), 0, 16)
         rokoko = read_motion(shared_file("other_rigs/ad_rokoko_jesse_dance.bvh"))
-    result = retarget(karate, rokoko)
-    setup = prepare(karate, rokoko)
+    from usdmotion.ops.retarget.jointmap import JointMap
+
+    # the automatic map of then (normalised names; the asf profile maps 17 joints now)
+    five = JointMap({"LeftHand": "lhand", "Head": "head", "RightHand": "rhand", "LeftFoot": "lfoot",
+                     "RightFoot": "rfoot"})
+    with pytest.warns(UsdMotionWarning, match=r"the result lies far from the source: .* with 5 of 60 target joints"):
+        result = retarget(karate, rokoko, joint_map=five)  # the distorted targets stay out of reach
+    setup = prepare(karate, rokoko, joint_map=five)
     args = (rokoko.parents, setup.mapped, setup.targets, setup.weights)
     start = frame_losses(setup.translations, setup.inits[result.report["init"]], *args).sum()
     final = frame_losses(local_translations(result.motion), result.motion.rotations, *args).sum()
     assert result.report["iterations_run"] > 2
     assert final < 0.9 * start
+
+
+def test_the_karate_rig_maps_by_its_asf_profile_and_lands_near_its_source(shared_file):
+    """The same 16 frames read with ``--ignore-joint-positions`` (the OFFSETs: an undistorted
+    skeleton), mapped automatically through the ``asf`` profile (17 joints: hips, spine,
+    head, arms, legs; by normalised names 5): the result lies within a few cm of the source,
+    and no far-result warning is given. Independent computation: NumPy forward kinematics of
+    the result against the source positions the solve was given."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        karate = frames(read_motion(shared_file("other_rigs/ad_karate_mawashigeri.bvh"),
+                                    ignore_joint_positions=True), 0, 16)
+        rokoko = read_motion(shared_file("other_rigs/ad_rokoko_jesse_dance.bvh"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UsdMotionWarning)
+        result = retarget(karate, rokoko)
+    assert result.report["map"]["how"] == "rig profiles asf -> rokoko"
+    setup = prepare(karate, rokoko)
+    assert len(setup.mapped) >= 17
+    world = fk_arrays(result.motion.rotations, local_translations(result.motion), rokoko.parents)[1]
+    rms_cm = np.sqrt(np.mean(np.sum((world[:, setup.mapped] - setup.targets[:, setup.mapped]) ** 2, -1))) * 100 \
+        * rokoko.meters_per_unit
+    assert rms_cm < 5.0
 
 
 # ----------------------------------------------------------------- methods, modes

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 from conftest import SHARED_DATA, TEST_DATA
 from skeleton_names_record import VARIANTS, record_maps, record_names, record_skeleton, skeletons_of
@@ -36,6 +37,10 @@ WIDENED = {"variant:namespace_pipe": {"landmarks", "landmarks_guessed", "de_leva
 HUMANIK = {"edge_cases/bvhtoolbox_walk01.bvh", "edge_cases/pybvh_bvh_example_mixed_orders_zup.bvh",
            "edge_cases/pybvh_bvh_test3_60joints_mixed_orders.bvh", "edge_cases/wspr_milad_blank_line_6ch_125fps.bvh",
            "other_rigs/ad_fair1_zombie.bvh"}
+#: Corpus rigs recognised by a profile since the record: the HumanIK-named ones, and AnimatedDrawings'
+#: karate BVH (CMU ASF bone names on a BVH rig), whose ``asf`` profile takes part in automatic maps since
+#: a karate → Rokoko retarget matched 5 joints by normalised names and its result lay ~1 m from the source.
+NEWLY_PROFILED = {**dict.fromkeys(HUMANIK, "humanik"), "other_rigs/ad_karate_mawashigeri.bvh": "asf"}
 CAPITAL_SIDES = {"Lfoot": ("left", "foot"), "Lhand": ("left", "hand"), "Lshldr": ("left", "shldr"),
                  "Lthigh": ("left", "thigh"), "Rfoot": ("right", "foot"), "Rhand": ("right", "hand"),
                  "Rshldr": ("right", "shldr"), "Rthigh": ("right", "thigh")}
@@ -58,10 +63,10 @@ def test_recognition_on_every_rig_is_unchanged(skeletons, label):
     if label not in skeletons:
         pytest.skip(f"{label} not found under {SHARED_DATA}")
     now, before = plain(record_skeleton(skeletons[label])), GOLDEN["skeletons"][label]
-    same = set(before) - WIDENED.get(label, set()) - ({"profile"} if label in HUMANIK else set())
+    same = set(before) - WIDENED.get(label, set()) - ({"profile"} if label in NEWLY_PROFILED else set())
     assert {k: now[k] for k in same} == {k: before[k] for k in same}
-    if label in HUMANIK:
-        assert before["profile"] is None and now["profile"] == "humanik"
+    if label in NEWLY_PROFILED:
+        assert before["profile"] is None and now["profile"] == NEWLY_PROFILED[label]
 
 
 @pytest.mark.parametrize("label", sorted(WIDENED))
@@ -102,9 +107,9 @@ def test_automatic_joint_maps_are_unchanged(skeletons):
     recorded = {k: v for k, v in GOLDEN["maps"].items() if "variant:namespace_pipe" not in k}  # checked below
     expected = {k: v for k, v in recorded.items() if all(s in skeletons for s in k.split(" -> "))}
     assert len(expected) > 0.9 * len(recorded), "most of the corpus is missing"
-    kept = {k: v for k, v in expected.items() if not HUMANIK & set(k.split(" -> "))}
+    kept = {k: v for k, v in expected.items() if not set(NEWLY_PROFILED) & set(k.split(" -> "))}
     assert {k: maps.get(k) for k in kept} == kept
-    for key in set(expected) - set(kept):  # a HumanIK-named rig: through the profiles where both are recognised
+    for key in set(expected) - set(kept):  # a newly recognised rig: through the profiles where both are recognised
         source, target = key.split(" -> ")
         profiles = [detect_profile(skeletons[label].joint_names) for label in (source, target)]
         if all(profiles) and expected[key]["how"] != "same names":  # same names still come first
@@ -141,19 +146,47 @@ def test_presets_are_tried_in_the_documented_order():
     assert daz.points["head_top"] == "leftEye_End" and daz.points["neck_base"] == "neck"
 
 
-def test_asf_profile_is_named_not_detected(shared_file, tmp_path):
+def test_asf_profile_is_detected_and_maps_the_karate_rig(shared_file, tmp_path):
+    """AnimatedDrawings' karate BVH (CMU ASF bone names) is recognised as ``asf``: automatic maps
+    to a recognised rig go through the profiles (19 joints; by normalised names 5 matched, and a
+    karate → Rokoko retarget lay ~1 m from its source). A map file naming the profiles agrees."""
     from usdmotion.io import read_motion
 
     karate = read_motion(shared_file("other_rigs/ad_karate_mawashigeri.bvh"))
     resolved = profile_joints(rig_profiles()["asf"], karate.joint_names)
     assert resolved["l_forearm"] == "lradius" and resolved["chest"] == "thorax"
-    assert detect_profile(karate.joint_names) is None  # automatic maps stay on normalised names
+    assert detect_profile(karate.joint_names) == "asf"
     cmu = read_motion(shared_file("cmu/cgspeed_12_01_walk.bvh"))
+    automatic = auto_map(cmu.joint_names, karate.joint_names, karate.end_sites)
+    assert automatic.how == "rig profiles cmu_cgspeed -> asf"
+    assert sum(v is not None for v in automatic.pairs.values()) >= 17
     path = tmp_path / "m.json"
     path.write_text(json.dumps({"source_profile": "cmu_cgspeed", "target_profile": "asf"}))
     src, _, jmap = resolve_map(load_joint_map(path), cmu.joint_names, karate.joint_names)
     assert cmu.joint_names[src[karate.joint_index("ltibia")]] == "LeftLeg"
     assert cmu.joint_names[src[karate.joint_index("rhumerus")]] == "RightArm"
+    assert {t: s for t, s in automatic.pairs.items() if s} == {t: s for t, s in jmap.pairs.items() if s}
+
+
+def test_cmu_asf_amc_skeletons_map_onto_their_cgspeed_conversion_joint_for_joint(shared_file):
+    """A CMU ASF/AMC take (subject 86) is recognised as ``cmu_asf`` and its automatic map onto
+    cgspeed's BVH conversion of the same take pairs joints that stand at the same place on every
+    frame. Independent check: forward kinematics of both files (by normalised names 13 joints
+    matched; now every body point of both profiles)."""
+    from usdmotion.io import read_motion
+    from usdmotion.kinematics import joint_positions
+
+    amc = read_motion(shared_file("cmu86/86_01.amc"))
+    bvh = read_motion(shared_file("cmu86/86_01_from_amc_cgspeed_layout.bvh"), units="asf")
+    assert detect_profile(amc.joint_names) == "cmu_asf"
+    jmap = auto_map(amc.joint_names, bvh.joint_names, bvh.end_sites)
+    assert jmap.how == "rig profiles cmu_asf -> cmu_cgspeed"
+    pairs = {t: s for t, s in jmap.pairs.items() if s}
+    assert len(pairs) >= 21
+    a, b = joint_positions(amc), joint_positions(bvh)
+    for target, source in pairs.items():
+        gap = np.linalg.norm(a[:, amc.joint_index(source)] - b[:, bvh.joint_index(target)], axis=-1).max()
+        assert gap < 1e-3, (target, source, gap)
 
 
 @pytest.mark.parametrize("name, side_base, key", [
