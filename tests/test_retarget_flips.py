@@ -216,3 +216,30 @@ def test_no_step_across_a_leading_t_pose_frame_counts():
         names = result.motion.joint_names
         for j in np.flatnonzero(~result.motion.end_sites):
             assert reported[names[j]]["step_deg"] == pytest.approx(steps[j], abs=1e-3), names[j]
+
+
+def test_rigs_of_other_families_map_through_their_profiles_not_shared_names(shared_file):
+    """Mixamo and the cgspeed CMU rig share ``Neck``, ``LeftShoulder``, ``Spine1`` but not their
+    meaning (cgspeed's ``Neck`` and ``LeftShoulder`` are zero-length helpers): mapped by name,
+    a Mixamo boxing take turned the CMU rig's ``Neck`` and ``Neck1`` a half turn in one frame
+    (175° and 178°; the source's neck steps ≤ 2°). Through the profiles, Mixamo's neck drives
+    ``Neck1`` and no joint steps above its limit. Independent check: the steps of the written
+    neck rotations against twice the source's neck and head steps together (``largest_steps``)."""
+    from usdmotion.io import read_motion
+    from usdmotion.ops.retarget.jointmap import auto_map
+    from usdmotion.ops.retarget.pipeline import retarget
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        boxing = read_motion(shared_file("other_rigs/ad_mixamo_Boxing.bvh"))
+        walk = read_motion(shared_file(WALK))
+    jmap = auto_map(boxing.joint_names, walk.joint_names, walk.end_sites)
+    assert jmap.how == "rig profiles mixamo -> cmu_cgspeed"
+    assert jmap.pairs["Neck1"] == "Neck" and "Neck" not in jmap.pairs and "LeftShoulder" not in jmap.pairs
+    result = retarget(boxing, walk, contacts=None)
+    assert result.report["quality"]["flips"] == {}
+    motion = result.motion
+    steps, src_steps = largest_steps(motion.rotations), largest_steps(boxing.rotations)
+    source_neck = src_steps[[boxing.joint_names.index(n) for n in ("Neck", "Head")]].sum()  # 5.0°
+    for name in ("Neck", "Neck1"):  # the two CMU joints that carry Mixamo's neck between them
+        assert steps[motion.joint_names.index(name)] <= 2.0 * source_neck, name

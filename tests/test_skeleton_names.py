@@ -107,13 +107,18 @@ def test_automatic_joint_maps_are_unchanged(skeletons):
     recorded = {k: v for k, v in GOLDEN["maps"].items() if "variant:namespace_pipe" not in k}  # checked below
     expected = {k: v for k, v in recorded.items() if all(s in skeletons for s in k.split(" -> "))}
     assert len(expected) > 0.9 * len(recorded), "most of the corpus is missing"
-    kept = {k: v for k, v in expected.items() if not set(NEWLY_PROFILED) & set(k.split(" -> "))}
-    assert {k: maps.get(k) for k in kept} == kept
-    for key in set(expected) - set(kept):  # a newly recognised rig: through the profiles where both are recognised
+    profile = {label: detect_profile(skeletons[label].joint_names) for label in skeletons}
+
+    def families(key):  # both rigs recognised, by different profiles: same names no longer come first
         source, target = key.split(" -> ")
-        profiles = [detect_profile(skeletons[label].joint_names) for label in (source, target)]
-        if all(profiles) and expected[key]["how"] != "same names":  # same names still come first
-            assert maps[key]["how"] == f"rig profiles {profiles[0]} -> {profiles[1]}", key
+        return bool(profile[source] and profile[target] and profile[source] != profile[target])
+
+    kept = {k: v for k, v in expected.items() if not set(NEWLY_PROFILED) & set(k.split(" -> ")) and not families(k)}
+    assert {k: maps.get(k) for k in kept} == kept
+    for key in set(expected) - set(kept):  # through the profiles where both are recognised
+        source, target = key.split(" -> ")
+        if profile[source] and profile[target] and (expected[key]["how"] != "same names" or families(key)):
+            assert maps[key]["how"] == f"rig profiles {profile[source]} -> {profile[target]}", key
         else:
             assert maps[key] == expected[key], key
 

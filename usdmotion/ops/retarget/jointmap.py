@@ -5,7 +5,11 @@ profiles (``usdmotion/data/rigs/*.json``: canonical body points → a rig's join
 so a map between any two known rigs is composed through the canonical names), or is
 made automatically:
 
-1. **same names**: target joints whose names exist in the source (same rig family);
+1. **same names**: target joints whose names exist in the source (same rig family), unless
+   the two skeletons are recognised by different profiles: Mixamo and the cgspeed CMU rig
+   share ``Neck``, ``LeftShoulder``, ``Spine1`` but not their meaning (cgspeed's ``Neck`` and
+   ``LeftShoulder`` are zero-length helpers), and a Mixamo take mapped onto the CMU walk by
+   name turned the CMU rig's ``Neck``/``Neck1`` a half turn in one frame (175°/178°);
 2. **rig profiles**: both skeletons recognised by a profile's ``signature`` (profiles
    with ``"auto_map": false`` are used only where a map file names them);
 3. **normalised names**: lower case, ``prefix:`` / ``group|`` namespaces and
@@ -140,9 +144,10 @@ def auto_map(source_names, target_names, target_end_sites=None) -> JointMap:
     ends = np.zeros(len(target_names), bool) if target_end_sites is None else np.asarray(target_end_sites, bool)
     real = [n for n, e in zip(target_names, ends) if not e]
     same = {n: n for n in target_names if n in set(source_names)}
-    if real and sum(n in same for n in real) >= 0.6 * len(real):
-        return JointMap(same, {}, "same names")
     sp, tp = detect_profile(source_names), detect_profile(target_names)
+    other_families = bool(sp and tp and sp != tp)  # shared names, other meanings (a zero-length helper)
+    if real and sum(n in same for n in real) >= 0.6 * len(real) and not other_families:
+        return JointMap(same, {}, "same names")
     if sp and tp:
         return JointMap(profile_map(sp, tp, source_names, target_names), {}, f"rig profiles {sp} -> {tp}",
                         profiles=(sp, tp))
