@@ -37,6 +37,9 @@ ADVICE = [
     (r"guessed from the body|--units auto|--up-axis auto",
      "The units / up axis were guessed from the body (docs/units_guess.md); give --units / --up-axis to choose."),
     (r"repeats; renamed", "Nothing to do; rename the joint in the source if the new name matters downstream."),
+    (r"lies far from the source",
+     "Look at the result before using it: the map may pair the wrong joints (`--report` lists it; write one with "
+     "--map, docs/retarget.md) or the source is distorted (see its other warnings)."),
     (r"world positions", "Pass --ignore-joint-positions if the skeleton looks distorted."),
     (r"T-pose frame|--frames 1:", "Pass --frames 1: to skip the first frame."),
     (r"binary data|NUL|UTF-8|non-ASCII|empty file|not a BVH|is this a BVH",

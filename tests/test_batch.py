@@ -402,7 +402,7 @@ def test_a_redone_task_removes_only_its_takes_temporaries(tmp_path):
 
 def test_asf_amc_takes_are_found_and_named_like_the_studio_names_them(tmp_path, shared_file):
     """An ``.amc`` take (its skeleton the ``.asf`` beside it) is a take of the default batch, its
-    catalogue rig family is the Studio library's (CMU ASF bone names: ``asf``), and its output
+    catalogue rig family is the Studio library's (CMU's ASF/AMC skeletons: ``cmu_asf``), and its output
     is byte-identical to ``usdmotion convert``'s."""
     from usdmotion.studio.library import describe_take
 
@@ -417,7 +417,7 @@ def test_asf_amc_takes_are_found_and_named_like_the_studio_names_them(tmp_path, 
     cat = _catalogue(out)
     assert list(cat.relpath) == ["s86/86_01.amc"] and list(cat.status) == ["ok"]  # the .asf is no take
     studio = describe_take(src / "86_01.amc", lambda entry: read_motion(entry))["rig"]
-    assert cat.rig_family[0] == studio == "asf"
+    assert cat.rig_family[0] == studio == "cmu_asf"
     assert cat.frames[0] == 40
     assert main(["convert", str(src / "86_01.amc"), str(tmp_path / "86_01.usdc")]) == 0
     assert (tmp_path / "86_01.usdc").read_bytes() == (out / "s86/86_01.usdc").read_bytes()

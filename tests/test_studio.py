@@ -170,8 +170,8 @@ def test_only_requests_naming_this_machine_are_answered(studio):
 
 
 def test_the_rig_column_names_cmu_asf_amc_takes(tmp_path, shared_file):
-    """86_01.amc's bones (lfemur, lclavicle...) fit no automatic-map profile; the library still
-    names their family: the 'asf' profile (used only where named), whose signature they carry."""
+    """86_01.amc's bones (root, lfemur, lwrist...) fit the 'cmu_asf' profile (CMU's own ASF/AMC
+    skeletons); the library names their family by it."""
     import shutil
 
     from usdmotion.skeleton_names import rig_profiles
@@ -185,8 +185,8 @@ def test_the_rig_column_names_cmu_asf_amc_takes(tmp_path, shared_file):
     library = Library([lib], {"units": "asf"})
     meta = {e.name: library.metadata(e) for e in library.scan()}
     names = read_motion(lib / "86_01.amc").joint_names
-    assert set(rig_profiles()["asf"]["signature"]) <= set(names)
-    assert meta["86_01.amc"]["rig"] == "asf" and meta["86_01.amc"]["joints"] == 31
+    assert set(rig_profiles()["cmu_asf"]["signature"]) <= set(names)
+    assert meta["86_01.amc"]["rig"] == "cmu_asf" and meta["86_01.amc"]["joints"] == 31
     assert meta["walk.bvh"]["rig"] == "cmu_cgspeed"  # an automatic-map profile still wins where one fits
 
 

@@ -426,34 +426,9 @@ def retarget(source: Motion, target: Motion | None = None, *, remove=(), add=(),
         report["contacts"] = retarget_quality.contacts_summary(terms, root_scale)
     if compare:
         report["compare"] = _compare(source, setup, motion, q0, terms, rot_terms, iterations)
-    _warn_if_far(setup, motion, report, source_path)
+    retarget_quality.warn_if_far(setup, motion, report["loss"]["final"]["rms"], source_path)
     report["time_s"]["total"] = time.perf_counter() - start
     return RetargetResult(motion, report)
-
-
-#: A result whose joint-position RMS to the source exceeds this share of the target's size
-#: gets a warning: across rigs it is 1–4 % (``benchmarks/retarget_contacts.py``: 0.6–6.2 cm on
-#: 1.7–1.8 m figures); beyond a tenth, the map or the source is wrong.
-FAR_SHARE = 0.1
-
-
-def _warn_if_far(setup: Setup, motion: Motion, report: dict, source_path: str | None) -> None:
-    """Warn (:class:`~usdmotion.errors.UsdMotionWarning`) when the result lies far from the
-    source (:data:`FAR_SHARE` of the target's rest-pose size): a wrong map or a distorted
-    source, never a result to use without a look."""
-    import warnings
-
-    from usdmotion.errors import UsdMotionWarning
-    from usdmotion.kinematics import skeleton_height
-
-    size, rms = skeleton_height(motion), report["loss"]["final"]["rms"]
-    if size > 0 and rms > FAR_SHARE * size:
-        real = int((~setup.rig.end_sites).sum())
-        mapped = int((~setup.rig.end_sites[setup.mapped]).sum())
-        warnings.warn(f"{source_path or 'source'}: the result lies far from the source: joint-position RMS "
-                      f"{rms:.3g} units, {100 * rms / size:.0f} % of the target's size, with {mapped} of {real} target "
-                      f"joints mapped ({setup.joint_map.how}); check the map (--map) and the source's warnings",
-                      UsdMotionWarning, stacklevel=3)
 
 
 def _solve(setup: Setup, q0: np.ndarray, terms, rot_terms, method: str, iterations, progress,

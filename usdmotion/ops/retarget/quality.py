@@ -117,6 +117,32 @@ def quality(source: Motion, setup, motion: Motion, terms=None) -> dict:
     return out
 
 
+#: A result whose joint-position RMS to the source exceeds this share of the target's size
+#: gets a warning: across rigs it is 1–4 % (``benchmarks/retarget_contacts.py``: 0.6–6.2 cm on
+#: 1.7–1.8 m figures); beyond a tenth, the map or the source is wrong.
+FAR_SHARE = 0.1
+
+
+def warn_if_far(setup, motion: Motion, rms: float, source_path: str | None) -> None:
+    """Warn (:class:`~usdmotion.errors.UsdMotionWarning`) when the result ``motion`` lies far
+    from the source: its joint-position RMS ``rms`` (target units) above :data:`FAR_SHARE` of
+    the target's rest-pose size. A wrong map or a distorted source, never a result to use
+    without a look."""
+    import warnings
+
+    from usdmotion.errors import UsdMotionWarning
+    from usdmotion.kinematics import skeleton_height
+
+    size = skeleton_height(motion)
+    if size > 0 and rms > FAR_SHARE * size:
+        real = int((~setup.rig.end_sites).sum())
+        mapped = int((~setup.rig.end_sites[setup.mapped]).sum())
+        warnings.warn(f"{source_path or 'source'}: the result lies far from the source: joint-position RMS "
+                      f"{rms:.3g} units, {100 * rms / size:.0f} % of the target's size, with {mapped} of {real} target "
+                      f"joints mapped ({setup.joint_map.how}); check the map (--map) and the source's warnings",
+                      UsdMotionWarning, stacklevel=3)
+
+
 def floor_penetration(world: np.ndarray, floor: float, up: int, cm: float) -> dict:
     """``max_depth_cm`` of any joint of ``world (F, J, 3)`` below ``floor`` and ``frames_below``
     (deeper than :data:`BELOW_FLOOR_CM`)."""
