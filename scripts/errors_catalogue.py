@@ -37,6 +37,7 @@ ADVICE = [
     (r"guessed from the body|--units auto|--up-axis auto",
      "The units / up axis were guessed from the body (docs/units_guess.md); give --units / --up-axis to choose."),
     (r"repeats; renamed", "Nothing to do; rename the joint in the source if the new name matters downstream."),
+    (r"USDMOTION_JAX_CACHE_MB", "Set it to a number of megabytes (0 or more), or unset it for the default (2000)."),
     (r"lies far from the source",
      "Look at the result before using it: the map may pair the wrong joints (`--report` lists it; write one with "
      "--map, docs/retarget.md) or the source is distorted (see its other warnings)."),

@@ -140,3 +140,23 @@ def test_a_command_keeps_the_cache_folder_under_its_bound(tmp_path):
     assert run(cache, USDMOTION_JAX_CACHE_MB="0.001") == first  # trimmed at start, then compiled and traced again
     assert not any(p.exists() and p.stat().st_mtime == day_ago for p in entries)
     assert list((cache / "exported").glob("*.jaxexport"))  # the new process's own entries are there
+
+
+@pytest.mark.parametrize("setting, megabytes, warns", [("", 2000.0, False), ("5", 5.0, False), ("0", 0.0, False),
+                                                       ("abc", 2000.0, True), ("nan", 2000.0, True),
+                                                       ("inf", 2000.0, True), ("-3", 2000.0, True)])
+def test_the_cache_bound_setting(monkeypatch, setting, megabytes, warns):
+    """``USDMOTION_JAX_CACHE_MB``: megabytes ≥ 0; anything else warns and keeps the default
+    (``nan`` had reached ``int()``: a traceback)."""
+    import warnings
+
+    from usdmotion.errors import UsdMotionWarning
+    from usdmotion.ops.retarget.jax_runtime import CACHE_MB, _cache_megabytes
+
+    monkeypatch.setenv("USDMOTION_JAX_CACHE_MB", setting)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert _cache_megabytes() == megabytes
+    assert CACHE_MB == 2000
+    said = [w for w in caught if issubclass(w.category, UsdMotionWarning) and "USDMOTION_JAX_CACHE_MB" in str(w.message)]
+    assert bool(said) == warns

@@ -107,10 +107,10 @@ def _swing(bases, u, v) -> np.ndarray:
     cos = np.sum(carried * v, -1) / np.maximum(np.linalg.norm(carried, axis=-1) * length[..., 0], 1e-300)
     angle = np.arccos(np.clip(cos, -1.0, 1.0)).max(axis=1)  # (C, K): the largest swing over the take
     angle[-1, ~turnable] = np.inf
+    k = np.arange(len(u))
     chosen = np.zeros(len(u), np.int64)
     for i in range(1, len(candidates)):  # a later base only where it beats the chosen one by more than 1e-9
-        chosen = np.where(angle[i] < angle[chosen, np.arange(len(u))] - 1e-9, i, chosen)
-    k = np.arange(len(u))
+        chosen = np.where(angle[i] < angle[chosen, k] - 1e-9, i, chosen)
     return quat_mul(quat_between(carried[chosen, :, k].swapaxes(0, 1), v), candidates[chosen, :, k].swapaxes(0, 1))
 
 

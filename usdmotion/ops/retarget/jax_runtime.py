@@ -69,12 +69,27 @@ def enable_compilation_cache() -> str | None:
         return None
     jax.config.update("jax_compilation_cache_dir", str(folder))
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
-    try:
-        megabytes = float(os.environ.get("USDMOTION_JAX_CACHE_MB") or CACHE_MB)
-    except ValueError:
-        megabytes = CACHE_MB
-    trim_cache(folder, int(max(megabytes, 0.0) * 1e6))
+    trim_cache(folder, int(_cache_megabytes() * 1e6))
     return str(folder)
+
+
+def _cache_megabytes() -> float:
+    """``$USDMOTION_JAX_CACHE_MB`` (default :data:`CACHE_MB`); a value that is no number ≥ 0
+    warns and gives the default."""
+    setting = os.environ.get("USDMOTION_JAX_CACHE_MB", "").strip()
+    try:
+        megabytes = float(setting) if setting else float(CACHE_MB)
+    except ValueError:
+        megabytes = float("nan")
+    if np.isfinite(megabytes) and megabytes >= 0:
+        return megabytes
+    import warnings
+
+    from usdmotion.errors import UsdMotionWarning
+
+    warnings.warn(f"USDMOTION_JAX_CACHE_MB must be a number of megabytes >= 0, got {setting!r}: keeping the "
+                  f"compilation cache under {CACHE_MB} MB", UsdMotionWarning, stacklevel=3)
+    return float(CACHE_MB)
 
 
 #: Default size bound of the compilation cache folder, in megabytes (an executable is
