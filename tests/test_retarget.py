@@ -411,6 +411,30 @@ def test_the_karate_rig_maps_by_its_asf_profile_and_lands_near_its_source(shared
     assert rms_cm < 5.0
 
 
+def test_a_cmu_walk_onto_the_optitrack_rig_maps_its_limbs_and_is_not_refused(shared_file):
+    """The OptiTrack Arena rig (Biovision-style names: LeftCollar, LeftShoulder at the shoulder,
+    LeftElbow, LeftHip, LeftKnee) was mapped by normalised names onto 6 CMU joints, cgspeed's
+    zero-length ``LeftShoulder`` clavicle onto its shoulder joint, and the walk was refused as
+    "2.06x the size of the source: the units look mismatched" (exit 2) though both files state
+    their units. Through the ``optitrack`` profile it maps every limb, and the sizes agree
+    (1.73 m against the walk's 1.43 m: ratio ≈ 1.2). Independent computation: the skeletons'
+    heights by forward kinematics of their rest poses."""
+    from usdmotion.kinematics import skeleton_height
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        walk = frames(read_motion(shared_file(WALK), units="asf"), 1, 16)
+        louise = read_motion(shared_file("other_rigs/wspr_louise_optitrack_arena.bvh"))
+    result = retarget(walk, louise, contacts=None)
+    assert result.report["map"]["how"] == "rig profiles cmu_cgspeed -> optitrack"
+    pairs = result.report["map"]["pairs"]
+    assert pairs["LeftShoulder"] == "LeftArm" and pairs["LeftKnee"] == "LeftLeg" and pairs["RightWrist"] == "RightHand"
+    assert sum(v is not None for v in pairs.values()) >= 17
+    ratio = (skeleton_height(louise) * louise.meters_per_unit) / (skeleton_height(walk) * walk.meters_per_unit)
+    assert 1.1 < ratio < 1.35
+    assert result.report["loss"]["final"]["rms"] < 0.05 * skeleton_height(louise)
+
+
 # ----------------------------------------------------------------- methods, modes
 
 

@@ -40,7 +40,13 @@ HUMANIK = {"edge_cases/bvhtoolbox_walk01.bvh", "edge_cases/pybvh_bvh_example_mix
 #: Corpus rigs recognised by a profile since the record: the HumanIK-named ones, and AnimatedDrawings'
 #: karate BVH (CMU ASF bone names on a BVH rig), whose ``asf`` profile takes part in automatic maps since
 #: a karate → Rokoko retarget matched 5 joints by normalised names and its result lay ~1 m from the source.
-NEWLY_PROFILED = {**dict.fromkeys(HUMANIK, "humanik"), "other_rigs/ad_karate_mawashigeri.bvh": "asf"}
+#: The OptiTrack Arena and MocapBank rigs (Biovision-style LeftCollar/LeftShoulder/LeftElbow/LeftHip/LeftKnee names)
+#: have the ``optitrack`` profile since a CMU walk onto the OptiTrack rig, mapped by normalised names (6 joints, cgspeed's
+#: zero-length LeftShoulder onto its shoulder joint), was refused as "2.06x the size: units mismatched".
+NEWLY_PROFILED = {**dict.fromkeys(HUMANIK, "humanik"), "other_rigs/ad_karate_mawashigeri.bvh": "asf",
+                  "other_rigs/wspr_louise_optitrack_arena.bvh": "optitrack",
+                  "edge_cases/20tab_test_mocapbank_crlf.bvh": "optitrack",
+                  "edge_cases/pybvh_bvh_test2_crlf_yxz.bvh": "optitrack"}  # Motive's Chest..Chest4, LeftToe
 CAPITAL_SIDES = {"Lfoot": ("left", "foot"), "Lhand": ("left", "hand"), "Lshldr": ("left", "shldr"),
                  "Lthigh": ("left", "thigh"), "Rfoot": ("right", "foot"), "Rhand": ("right", "hand"),
                  "Rshldr": ("right", "shldr"), "Rthigh": ("right", "thigh")}
