@@ -242,9 +242,9 @@ def _make_lm(problem: Problem, linear: str = "tree", damping: str = LM_DAMPING_U
             # largest): a start far from the targets can need several (a distorted source: the LM
             # stopped after two rejections without any gain); with contact or floor terms, which
             # weigh 100–1000× the positions, rejections never count, as λ adapts all the way
-            counts = ok | (lam >= LM_LAMBDA_MAX) if stiff else ok | moved | (lam >= LM_LAMBDA_MAX)
-            stall = jnp.where(gain > LM_RTOL, 0, jnp.where(counts, stall + 1, stall))
             moved = moved | ok | (lam >= LM_LAMBDA_MAX)
+            counts = ok | (lam >= LM_LAMBDA_MAX) if stiff else moved
+            stall = jnp.where(gain > LM_RTOL, 0, jnp.where(counts, stall + 1, stall))
             pick = lambda new, old: jnp.where(ok.reshape((-1,) + (1,) * (new.ndim - 1)), new, old)  # noqa: E731
             new_loss = pick(loss2, loss)
             before, after = total(jnp.sum(loss)), total(jnp.sum(new_loss))
