@@ -636,3 +636,64 @@ def test_floor_includes_the_toe_tips_that_go_below_it():
     assert tips_floor(setup, np.array([2, 3]), 1.0, 2.0, 1) == pytest.approx(1.0 + 2.0 * (expected - 1.0))
     setup.mapped = np.arange(4)  # the tip not mapped: the contacts' floor
     assert tips_floor(setup, np.array([3]), 0.5, 1.0, 1) == 0.5
+
+
+def test_an_ankle_without_a_toe_is_planted_no_lower_than_its_foot_hangs_below_it():
+    """A foot whose End Site hangs straight under the ankle (the Biovision example rig's sole
+    point) plants its ankle at least that far above the floor: lower, the sole point lay under
+    the floor and the foot was turned to lift it (100°/frame steps)."""
+    from types import SimpleNamespace
+
+    from usdmotion.ops.contacts.detect import FootContacts
+    from usdmotion.ops.retarget.contact_terms import ContactTerms, solved_ankle_levels
+
+    parents = np.array([-1, 0, 1])  # hips, ankle, its End Site 8 units below
+    offsets = np.array([[0, 0, 0], [0, -80, 0], [0, -8.0, 0]])
+    n = 30
+    contact = np.zeros((n, 1), bool)
+    contact[5:20] = True
+    planted = np.zeros((n, 1, 3))
+    planted[5:20] = [0, 3.5, 0]
+    found = FootContacts(("ankle",), np.array([1]), ("left_ankle",), contact, 0.0, np.array([0.035]), "Y", 120.0)
+    terms = ContactTerms(np.array([1]), planted, np.array([3.5]), 0.0, 1, 1.0, np.zeros((n, 3, 3)),
+                         np.zeros((n, 3)), found, ())
+    setup = SimpleNamespace(rig=SimpleNamespace(parents=parents, meters_per_unit=0.01, n_joints=3), offsets=offsets)
+    out = solved_ankle_levels(setup, terms, np.zeros((n, 3, 3)))
+    floor_min = 0.1  # ABOVE_FLOOR_M in target units
+    np.testing.assert_allclose(out.level, [8.0 + floor_min])
+    np.testing.assert_allclose(out.planted[5:20, 0, 1], 8.0 + floor_min)
+    np.testing.assert_array_equal(out.planted[:5], terms.planted[:5])
+    higher = dataclasses.replace(terms, level=np.array([12.0]))  # already higher than the foot hangs: kept
+    assert solved_ankle_levels(setup, higher, np.zeros((n, 3, 3))).level[0] == 12.0
+
+
+def test_a_cmu_walk_onto_the_biovision_example_rig_plants_its_toeless_feet_without_flips():
+    """The Biovision example rig (``LeftUpArm``, ``LeftLowArm``, ``LeftLowLeg``, a foot with no
+    toe whose End Site hangs under the ankle) was mapped by normalised names (10 joints, no
+    elbows or knees), and the contact solve turned its feet by 100°/frame: the source's ankle
+    height put the sole point under the floor. Now it maps through the ``biovision`` profile and
+    no joint steps above its limit. Independent check: float64 forward kinematics of the written
+    motion, End Sites included, against the reported floor."""
+    from conftest import shared_path
+
+    from usdmotion.io import read_motion
+    from usdmotion.ops.retarget.pipeline import retarget
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        walk = read_motion(shared_path(WALK), units="asf")
+        rig = read_motion(shared_path("edge_cases/bvhio_example.bvh"))
+    source = walk.with_frames(walk.rotations[1:241], walk.root_translation[1:241], None)  # 2 s, both feet planted
+    result = retarget(source, rig, contacts="auto")
+    rep = result.report
+    assert rep["map"]["how"] == "rig profiles cmu_cgspeed -> biovision"
+    pairs = rep["map"]["pairs"]
+    assert pairs["LeftLowLeg"] == "LeftLeg" and pairs["RightLowArm"] == "RightForeArm"
+    assert sum(v is not None for v in pairs.values()) >= 16
+    assert rep["contacts"]["parts"] == ["left_ankle", "right_ankle"]
+    assert rep["quality"]["flips"] == {}
+    motion = result.motion
+    world = joint_positions(motion) * motion.meters_per_unit
+    ends = [motion.joint_index(n) for n in ("LeftFoot_End", "RightFoot_End")]
+    assert world[:, ends, 1].min() >= rep["contacts"]["floor_m"] - 1e-4  # the sole points on or above the floor
+    assert rep["quality"]["feet"]["skate_mean_cm_s"] <= 1.0

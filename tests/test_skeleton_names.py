@@ -14,6 +14,7 @@ the test checks that they are recognised exactly like the rig they were renamed 
 from __future__ import annotations
 
 import json
+import warnings
 
 import numpy as np
 import pytest
@@ -46,7 +47,11 @@ HUMANIK = {"edge_cases/bvhtoolbox_walk01.bvh", "edge_cases/pybvh_bvh_example_mix
 NEWLY_PROFILED = {**dict.fromkeys(HUMANIK, "humanik"), "other_rigs/ad_karate_mawashigeri.bvh": "asf",
                   "other_rigs/wspr_louise_optitrack_arena.bvh": "optitrack",
                   "edge_cases/20tab_test_mocapbank_crlf.bvh": "optitrack",
-                  "edge_cases/pybvh_bvh_test2_crlf_yxz.bvh": "optitrack"}  # Motive's Chest..Chest4, LeftToe
+                  "edge_cases/pybvh_bvh_test2_crlf_yxz.bvh": "optitrack",  # Motive's Chest..Chest4, LeftToe
+                  # ninth session: the Biovision example's names (LeftUpArm, LeftLowArm, LeftLowLeg; mapped by
+                  # normalised names without elbows or knees), and AnimatedDrawings' cartwheel rig (ASF bone names
+                  # with lowerback, upperback, LowerNeck, Neck: 6 joints by normalised names)
+                  "edge_cases/bvhio_example.bvh": "biovision", "other_rigs/ad_cartwheel_clean.bvh": "asf"}
 CAPITAL_SIDES = {"Lfoot": ("left", "foot"), "Lhand": ("left", "hand"), "Lshldr": ("left", "shldr"),
                  "Lthigh": ("left", "thigh"), "Rfoot": ("right", "foot"), "Rhand": ("right", "hand"),
                  "Rshldr": ("right", "shldr"), "Rthigh": ("right", "thigh")}
@@ -165,7 +170,7 @@ def test_asf_profile_is_detected_and_maps_the_karate_rig(shared_file, tmp_path):
 
     karate = read_motion(shared_file("other_rigs/ad_karate_mawashigeri.bvh"))
     resolved = profile_joints(rig_profiles()["asf"], karate.joint_names)
-    assert resolved["l_forearm"] == "lradius" and resolved["chest"] == "thorax"
+    assert resolved["l_forearm"] == "lradius" and resolved["spine"] == "thorax" and "chest" not in resolved
     assert detect_profile(karate.joint_names) == "asf"
     cmu = read_motion(shared_file("cmu/cgspeed_12_01_walk.bvh"))
     automatic = auto_map(cmu.joint_names, karate.joint_names, karate.end_sites)
@@ -177,6 +182,34 @@ def test_asf_profile_is_detected_and_maps_the_karate_rig(shared_file, tmp_path):
     assert cmu.joint_names[src[karate.joint_index("ltibia")]] == "LeftLeg"
     assert cmu.joint_names[src[karate.joint_index("rhumerus")]] == "RightArm"
     assert {t: s for t, s in automatic.pairs.items() if s} == {t: s for t, s in jmap.pairs.items() if s}
+
+
+@pytest.mark.parametrize("rig", ["other_rigs/ad_karate_mawashigeri.bvh", "other_rigs/ad_cartwheel_clean.bvh"])
+def test_asf_rigs_spine_joints_map_to_the_cmu_joints_at_their_height(shared_file, rig):
+    """Each spine joint of an ``asf`` rig is paired with the CMU joint at its height: the
+    karate rig's one spine joint, ``thorax``, sits a third of the way from the hips to the
+    shoulders and was paired with cgspeed's chest (``Spine1``, at 0.82 of the way); a CMU walk
+    onto it ended at per-joint RMS 2.46 units, ``thorax`` 5.75 (now 1.98 and 2.47). Independent
+    computation: each rest pose's heights above the hips over its shoulders' (forward kinematics);
+    the segmentation roles still turn with ``thorax`` as the chest."""
+    from usdmotion.io import read_motion
+    from usdmotion.kinematics import rest_positions
+
+    def heights(motion, shoulder):  # rest height above the hips, in shoulder heights
+        up = "XYZ".index(motion.up_axis)
+        rest = rest_positions(motion)[:, up]
+        return {n: (rest[j] - rest[0]) / (rest[motion.joint_index(shoulder)] - rest[0])
+                for j, n in enumerate(motion.joint_names)}
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        cmu, target = read_motion(shared_file("cmu/cgspeed_12_01_walk.bvh")), read_motion(shared_file(rig))
+    pairs = auto_map(cmu.joint_names, target.joint_names, target.end_sites).pairs
+    spine = [n for n in ("thorax", "lowerback", "upperback") if n in target.joint_names]
+    cmu_h, target_h = heights(cmu, "LeftArm"), heights(target, "lhumerus")
+    for name in spine:
+        assert abs(target_h[name] - cmu_h[pairs[name]]) < 0.2, (name, pairs[name], target_h[name], cmu_h[pairs[name]])
+    assert R.match_preset(target) == ("asf" if "thorax" in target.joint_names else None)
 
 
 def test_cmu_asf_amc_skeletons_map_onto_their_cgspeed_conversion_joint_for_joint(shared_file):

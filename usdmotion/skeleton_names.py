@@ -333,8 +333,9 @@ def _first(candidates) -> str:
 def rig_presets(kind: str) -> tuple[RigPreset, ...]:
     """The ``"roles"`` or ``"landmarks"`` presets, in the order they are tried.
 
-    Every profile with ``presets`` has a role preset (its ``joints``, and its
-    ``signature`` must exist too); one whose ``presets`` has ``landmarks`` also has a
+    Every profile with ``presets`` has a role preset (its ``joints`` over which its
+    ``roles`` names some points, and its ``signature`` must exist too); one whose
+    ``presets`` has ``landmarks`` also has a
     landmark preset (those points over ``joints``; it needs only its own joints).
     """
     if kind not in ("roles", "landmarks"):
@@ -345,7 +346,7 @@ def rig_presets(kind: str) -> tuple[RigPreset, ...]:
         if spec is None or (kind == "landmarks" and "landmarks" not in spec):
             continue
         points = {p: _first(c) for p, c in profile["joints"].items()}
-        points.update(spec.get("landmarks", {}) if kind == "landmarks" else {})
+        points.update(spec.get(kind, {}))  # the preset's own names of some points
         ns = spec.get("namespace", "")
         exact = MappingProxyType({p: ns + n for p, n in points.items()})
         signature = tuple(ns + n for n in spec["signature"]) if kind == "roles" else ()  # landmarks: none

@@ -177,11 +177,19 @@ def solved_ankle_levels(setup, terms: ContactTerms, world: np.ndarray) -> Contac
     How high an ankle stands over a planted toe is a property of the target's foot (its
     bones and their rest directions), not of the source's: ``k`` times the source's stance
     height put Mixamo's ankles 1.1 cm below where the plain solve stands them, and the legs
-    bent their knees by that much."""
+    bent their knees by that much.
+
+    An ankle without a toe (no contact joint below it) is planted no lower than the joints
+    below it (its foot's End Site) hang under it in the target's rest pose, standing: the
+    Biovision example rig's End Site is a sole point 8.8 cm straight under the ankle, and at
+    the CMU walk's 3.6 cm ankle height it lay under the floor, where the foot was turned to
+    lift it about an axis that its near-vertical bone did not fix (foot steps of 100°/frame)."""
     anc = ancestor_matrix(setup.rig.parents)
     contact = np.asarray(terms.target_contacts.contact, bool)
     ankles = [c for c, j in enumerate(terms.joints) if anc[j, terms.joints].any()]
-    if not ankles:
+    toeless = [c for c, (j, part) in enumerate(zip(terms.joints, terms.target_contacts.parts))
+               if part.endswith("_ankle") and c not in ankles and anc[j].any() and contact[:, c].any()]
+    if not ankles and not toeless:
         return terms
     level = terms.level.copy()
     heights = world[:, terms.joints, terms.up]
@@ -190,6 +198,11 @@ def solved_ankle_levels(setup, terms: ContactTerms, world: np.ndarray) -> Contac
     for c in ankles:
         if contact[:, c].any():
             level[c] = max(solved[c], floor_min)
+    if toeless:
+        rest = _rest_positions(setup)[:, terms.up]
+        for c in toeless:
+            j = terms.joints[c]
+            level[c] = max(level[c], floor_min + float(rest[j] - rest[anc[j]].min()))  # its foot's reach below it
     planted = terms.planted.copy()
     planted[..., terms.up] = np.where(contact, level[None], planted[..., terms.up])
     planted = foot_length_apart(setup, terms.joints, contact, planted, terms.up)
@@ -208,9 +221,7 @@ def foot_length_apart(setup, joints: np.ndarray, contact: np.ndarray, planted: n
     on the CMU walk): both held, the foot cannot lie on both and the stance foot drifts
     between them. The ankle's point is kept; the toe's follows it."""
     anc = ancestor_matrix(setup.rig.parents)
-    identity = np.zeros((setup.rig.n_joints, 4))
-    identity[:, 0] = 1.0
-    rest = fk_arrays(identity, setup.offsets, setup.rig.parents)[1]
+    rest = _rest_positions(setup)
     planted = planted.copy()
     for t, toe in enumerate(joints):
         ankles = [a for a, j in enumerate(joints) if anc[j, toe]]
@@ -286,3 +297,9 @@ def _source_positions(setup, source, indices: np.ndarray) -> np.ndarray:
         out[:, c] = setup.targets[:, j]
     return out
 
+
+def _rest_positions(setup) -> np.ndarray:
+    """``(J, 3)`` the target rig's joint positions in its rest pose (target units, root at 0)."""
+    identity = np.zeros((setup.rig.n_joints, 4))
+    identity[:, 0] = 1.0
+    return fk_arrays(identity, setup.offsets, setup.rig.parents)[1]
