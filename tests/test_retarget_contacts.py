@@ -640,8 +640,9 @@ def test_floor_includes_the_toe_tips_that_go_below_it():
 
 def test_an_ankle_without_a_toe_is_planted_no_lower_than_its_foot_hangs_below_it():
     """A foot whose End Site hangs straight under the ankle (the Biovision example rig's sole
-    point) plants its ankle at least that far above the floor: lower, the sole point lay under
-    the floor and the foot was turned to lift it (100°/frame steps)."""
+    point) plants its ankle at least as far above the floor as the End Site reaches beyond it
+    along the shin in the rest pose: lower, the sole point lay under the floor and the foot was
+    turned to lift it (100°/frame steps)."""
     from types import SimpleNamespace
 
     from usdmotion.ops.contacts.detect import FootContacts
@@ -665,6 +666,10 @@ def test_an_ankle_without_a_toe_is_planted_no_lower_than_its_foot_hangs_below_it
     np.testing.assert_array_equal(out.planted[:5], terms.planted[:5])
     higher = dataclasses.replace(terms, level=np.array([12.0]))  # already higher than the foot hangs: kept
     assert solved_ankle_levels(setup, higher, np.zeros((n, 3, 3))).level[0] == 12.0
+    # a Z-up take whose rig's rest pose lies along -Y (pybvh's 60-joint test rig: its forefoot
+    # 1.44 in past the ankle along the shin, the foot turned 45.6°/frame): the reach is along the shin
+    lying = dataclasses.replace(terms, up=2, planted=planted[..., [0, 2, 1]])
+    np.testing.assert_allclose(solved_ankle_levels(setup, lying, np.zeros((n, 3, 3))).level, [8.0 + floor_min])
 
 
 def test_a_cmu_walk_onto_the_biovision_example_rig_plants_its_toeless_feet_without_flips():

@@ -180,10 +180,11 @@ def solved_ankle_levels(setup, terms: ContactTerms, world: np.ndarray) -> Contac
     bent their knees by that much.
 
     An ankle without a toe (no contact joint below it) is planted no lower than the joints
-    below it (its foot's End Site) hang under it in the target's rest pose, standing: the
-    Biovision example rig's End Site is a sole point 8.8 cm straight under the ankle, and at
-    the CMU walk's 3.6 cm ankle height it lay under the floor, where the foot was turned to
-    lift it about an axis that its near-vertical bone did not fix (foot steps of 100°/frame)."""
+    below it (its foot's End Site, a forefoot) reach beyond it along its shin in the target's
+    rest pose (how far they hang under it when the shin stands upright): the Biovision example
+    rig's End Site is a sole point 8.8 cm straight under the ankle, and at the CMU walk's
+    3.6 cm ankle height it lay under the floor, where the foot was turned to lift it about an
+    axis that its near-vertical bone did not fix (foot steps of 100°/frame)."""
     anc = ancestor_matrix(setup.rig.parents)
     contact = np.asarray(terms.target_contacts.contact, bool)
     ankles = [c for c, j in enumerate(terms.joints) if anc[j, terms.joints].any()]
@@ -199,10 +200,12 @@ def solved_ankle_levels(setup, terms: ContactTerms, world: np.ndarray) -> Contac
         if contact[:, c].any():
             level[c] = max(solved[c], floor_min)
     if toeless:
-        rest = _rest_positions(setup)[:, terms.up]
+        rest = _rest_positions(setup)
         for c in toeless:
             j = terms.joints[c]
-            level[c] = max(level[c], floor_min + float(rest[j] - rest[anc[j]].min()))  # its foot's reach below it
+            shin = rest[j] - rest[setup.rig.parents[j]]
+            reach = (rest[anc[j]] - rest[j]) @ (shin / max(np.linalg.norm(shin), 1e-300))
+            level[c] = max(level[c], floor_min + float(reach.max()))
     planted = terms.planted.copy()
     planted[..., terms.up] = np.where(contact, level[None], planted[..., terms.up])
     planted = foot_length_apart(setup, terms.joints, contact, planted, terms.up)
