@@ -333,9 +333,8 @@ def _first(candidates) -> str:
 def rig_presets(kind: str) -> tuple[RigPreset, ...]:
     """The ``"roles"`` or ``"landmarks"`` presets, in the order they are tried.
 
-    Every profile with ``presets`` has a role preset (its ``joints`` over which its
-    ``roles`` names some points, and its ``signature`` must exist too); one whose
-    ``presets`` has ``landmarks`` also has a
+    Every profile with ``presets`` has a role preset (its ``roles`` points over ``joints``, and
+    its ``signature`` must exist too); one whose ``presets`` has ``landmarks`` also has a
     landmark preset (those points over ``joints``; it needs only its own joints).
     """
     if kind not in ("roles", "landmarks"):
