@@ -86,6 +86,35 @@ def test_single_point_bones_point_at_their_target(walk_onto_daz):
         assert np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))).max() < 1e-3, hand
 
 
+def test_hands_with_helper_bones_point_along_the_source_hand(shared_file):
+    """MotionBuilder's HumanIK rigs put ``InHand`` helpers between hand and fingers (the corpus'
+    ``wspr_milad`` rig): the loss leaves the hand's twist and the helpers' bend free, and the LM
+    left them wherever each frame stopped; the CMU walk's hands stepped 21.6° and 12.7° in a
+    frame there (the source's ≤ 2.1° / 2.7°). Now the helpers keep the initial guess and the hand
+    turns from it onto the source's hand → finger direction: 5.8° / 8.5° (still above the 2x
+    limit: the initial guess's own steps). Independent check: float64 FK of both motions."""
+    from usdmotion.io import read_motion
+    from usdmotion.kinematics import joint_positions
+    from usdmotion.ops.retarget.pipeline import retarget
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        walk = read_motion(shared_file(WALK), units="asf")
+        rig = read_motion(shared_file("edge_cases/wspr_milad_blank_line_6ch_125fps.bvh"))
+    source = walk.with_frames(walk.rotations[1:201], walk.root_translation[1:201], None)
+    result = retarget(source, rig, contacts=None)
+    motion, pairs = result.motion, result.report["map"]["pairs"]
+    assert pairs["RightHandMiddle1"] == "RightHandIndex1" and pairs.get("RightInHandMiddle") is None
+    world, src = joint_positions(motion), joint_positions(source)
+    src_steps, steps = largest_steps(source.rotations), largest_steps(motion.rotations)
+    for side in ("Right", "Left"):
+        h, f = motion.joint_index(f"{side}Hand"), motion.joint_index(f"{side}HandMiddle1")
+        bone, want = world[:, f] - world[:, h], src[:, source.joint_index(f"{side}HandIndex1")] - src[:, source.joint_index(f"{side}Hand")]
+        cos = np.einsum("fk,fk->f", bone, want) / (np.linalg.norm(bone, axis=1) * np.linalg.norm(want, axis=1))
+        assert np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))).max() < 1e-3, side
+        assert steps[h] <= 4.0 * src_steps[source.joint_index(f"{side}Hand")], (side, steps[h])
+
+
 # --------------------------------------------- the contact solve's legs (leg_ik), synthetic legs
 
 

@@ -445,7 +445,7 @@ def _solve(setup: Setup, q0: np.ndarray, terms, rot_terms, method: str, iteratio
     q, t = solution.q, solution.t
     t[:, setup.anchor] += centre
     if setup.mode == "target" and method == "lm":  # bones moving one point: onto it (see aim_single_points)
-        q = aim_single_points(setup, q, t)
+        q = aim_single_points(setup, q, t, initial=q0)
     if terms is None and not problem.smoothing and not problem.anchored:
         # keep, per frame, the better of the initial guess and the float32 solution in float64
         args = (setup.rig.parents, setup.mapped, setup.targets, setup.weights)
