@@ -148,8 +148,8 @@ def aim_single_points(setup, q: np.ndarray, t: np.ndarray, initial: np.ndarray |
     short of their target — at a different place in neighbouring frames: CMU walk → DAZ
     hands stepped 7°/frame where the source's step ≤ 2°. The swing keeps the twist.
 
-    A chain with joints between the top and its mapped joint (HumanIK's ``InHand`` and
-    DAZ's ``Carpal`` helpers between hand and finger) has, with ``initial (F, J, 4)`` (the
+    A chain with joints between the top and its mapped joint (MotionBuilder HumanIK's
+    ``InHand`` helpers between hand and finger) has, with ``initial (F, J, 4)`` (the
     initial guess), those joints at the guess's rotations and the top swung from the guess's
     world rotation onto the source's direction from the top to the mapped joint (where the top
     is mapped): the loss leaves the twist and the helpers' bend free, the LM left them wherever
@@ -187,25 +187,4 @@ def aim_single_points(setup, q: np.ndarray, t: np.ndarray, initial: np.ndarray |
                          identity_quats((len(q),)))
         parent_q = world_q[:, rig.parents[j]] if rig.parents[j] >= 0 else identity_quats((len(q),))
         q[:, j] = quat_mul(quat_conjugate(parent_q), quat_mul(swing, start))
-    return q
-    q = q.copy()
-    mapped_set = set(mapped.tolist())
-    if twist_from is not None:
-        between = sorted(single - set(tops))
-        q[:, between] = twist_from[:, between]
-    world_q, world_p = fk_arrays(q, t, rig.parents)
-    start_q = world_q if twist_from is None else fk_arrays(twist_from, t, rig.parents)[0]
-    for j in tops:  # disjoint subtrees under unchanged parents: one FK serves all
-        m = mapped[np.flatnonzero(below[j])[0]]
-        now, want = world_p[:, m] - world_p[:, j], setup.targets[:, m] - world_p[:, j]
-        if twist_from is not None:
-            now = quat_rotate(start_q[:, j], quat_rotate(quat_conjugate(world_q[:, j]), now))
-            if j in mapped_set:
-                want = setup.targets[:, m] - setup.targets[:, j]
-        size = np.minimum(np.linalg.norm(now, axis=-1), np.linalg.norm(want, axis=-1))
-        ok = size > 1e-9 * max(1.0, float(np.abs(setup.offsets).max()))
-        swing = np.where(ok[:, None], quat_between(np.where(ok[:, None], now, 1.0), np.where(ok[:, None], want, 1.0)),
-                         identity_quats((len(q),)))
-        parent_q = world_q[:, rig.parents[j]] if rig.parents[j] >= 0 else identity_quats((len(q),))
-        q[:, j] = quat_mul(quat_conjugate(parent_q), quat_mul(swing, start_q[:, j]))
     return q
