@@ -191,9 +191,14 @@ def compose_transforms(rotations, translations):
 def rest_pose(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
     """``(world_rotations (J, 4), world_positions (J, 3))`` of the rest pose: OFFSETs with
     identity rotations (the BVH rest pose, USD's ``bindTransforms``)."""
-    identity = np.zeros((motion.n_joints, 4))
+    return rest_arrays(motion.offsets, motion.parents)
+
+
+def rest_arrays(offsets: np.ndarray, parents: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`rest_pose` of ``offsets (J, 3)`` and ``parents (J,)`` (a skeleton that is no Motion)."""
+    identity = np.zeros((len(parents), 4))
     identity[:, 0] = 1.0
-    return fk_arrays(identity, motion.offsets, motion.parents)
+    return fk_arrays(identity, offsets, parents)
 
 
 def rest_positions(motion: Motion) -> np.ndarray:

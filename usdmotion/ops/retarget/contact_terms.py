@@ -33,7 +33,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from usdmotion.kinematics import fk_arrays
+from usdmotion.kinematics import rest_arrays
 from usdmotion.ops.contacts.detect import UP_INDEX, FootContacts, runs
 from usdmotion.ops.retarget.hierarchy import ancestor_matrix
 
@@ -200,7 +200,7 @@ def solved_ankle_levels(setup, terms: ContactTerms, world: np.ndarray) -> Contac
         if contact[:, c].any():
             level[c] = max(solved[c], floor_min)
     if toeless:
-        rest = _rest_positions(setup)
+        rest = rest_arrays(setup.offsets, setup.rig.parents)[1]
         for c in toeless:
             j = terms.joints[c]
             shin = rest[j] - rest[setup.rig.parents[j]]
@@ -224,7 +224,7 @@ def foot_length_apart(setup, joints: np.ndarray, contact: np.ndarray, planted: n
     on the CMU walk): both held, the foot cannot lie on both and the stance foot drifts
     between them. The ankle's point is kept; the toe's follows it."""
     anc = ancestor_matrix(setup.rig.parents)
-    rest = _rest_positions(setup)
+    rest = rest_arrays(setup.offsets, setup.rig.parents)[1]
     planted = planted.copy()
     for t, toe in enumerate(joints):
         ankles = [a for a, j in enumerate(joints) if anc[j, toe]]
@@ -299,10 +299,3 @@ def _source_positions(setup, source, indices: np.ndarray) -> np.ndarray:
         j = int(np.flatnonzero(setup.source_of == idx)[0])
         out[:, c] = setup.targets[:, j]
     return out
-
-
-def _rest_positions(setup) -> np.ndarray:
-    """``(J, 3)`` the target rig's joint positions in its rest pose (target units, root at 0)."""
-    identity = np.zeros((setup.rig.n_joints, 4))
-    identity[:, 0] = 1.0
-    return fk_arrays(identity, setup.offsets, setup.rig.parents)[1]

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from usdmotion.kinematics import fk_arrays
+from usdmotion.kinematics import rest_arrays
 from usdmotion.ops.retarget.hierarchy import ancestor_matrix
 from usdmotion.ops.retarget.problem import Problem
 from usdmotion.rotations import quat_log, quat_mul, quat_normalize
@@ -73,9 +73,7 @@ def smooth_scale(setup) -> np.ndarray:
     """``(R,)`` per rotation joint ``Σ_m w_m ‖rest(m) − rest(j)‖²`` over its mapped descendants
     (units²): a rotation error of ``θ`` moves them by about ``θ`` times their distance, so the
     temporal term weighs a radian like the positions it moves."""
-    identity = np.zeros((setup.rig.n_joints, 4))
-    identity[:, 0] = 1.0
-    rest = fk_arrays(identity, setup.offsets, setup.rig.parents)[1]
+    rest = rest_arrays(setup.offsets, setup.rig.parents)[1]
     anc = ancestor_matrix(setup.rig.parents)[setup.rot_joints][:, setup.mapped]  # (R, M)
     d2 = np.sum((rest[setup.mapped][None] - rest[setup.rot_joints][:, None]) ** 2, axis=-1)
     return np.sum(anc * d2 * setup.weights[setup.mapped][None], axis=1)
