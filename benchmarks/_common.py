@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import atexit
 import json
 import os
 import platform
+import shutil
 import statistics
+import tempfile
 import time
 from pathlib import Path
 
@@ -24,6 +27,13 @@ def timed(fn, repeat: int = 7, warmup: int = 1) -> dict:
         fn()
         times.append(time.perf_counter() - start)
     return {"median_s": statistics.median(times), "min_s": min(times), "max_s": max(times), "runs": repeat}
+
+
+def scratch_folder(prefix: str) -> Path:
+    """A new temporary folder, removed with everything in it when the script exits (a run can write GBs)."""
+    folder = Path(tempfile.mkdtemp(prefix=prefix))
+    atexit.register(shutil.rmtree, folder, ignore_errors=True)
+    return folder
 
 
 def tiled_bvh(source: Path, frames: int, out: Path) -> Path:

@@ -35,6 +35,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+from _common import scratch_folder  # noqa: E402
 WALK = Path(os.environ.get("USDMOTION_SHARED_DATA", ROOT.parent / "shared" / "data")) / "cmu/cgspeed_12_01_walk.bvh"
 
 
@@ -155,12 +156,10 @@ def main() -> None:
     parser.add_argument("--long", type=int, default=0, help="also render this many frames to check memory")
     parser.add_argument("--ab", type=int, default=0, help="only the anti-aliasing rows, alternating, N times each")
     args = parser.parse_args()
-    import tempfile
-
     from usdmotion.io import read_motion
 
     motion = read_motion(WALK, units="asf")
-    tmp = Path(tempfile.mkdtemp(prefix="usdmotion-bench-"))
+    tmp = scratch_folder("usdmotion-bench-")
     if args.ab:
         return run_ab(motion, args.ab, args.frames, tmp)
     load_at_start = os.getloadavg()[0]

@@ -17,12 +17,12 @@ import json
 import os
 import subprocess
 import sys
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
+from _common import scratch_folder  # noqa: E402
 WALK = Path(os.environ.get("USDMOTION_SHARED_DATA", ROOT.parent / "shared" / "data")) / "cmu/cgspeed_12_01_walk.bvh"
 
 #: One render in a fresh process; prints a JSON line.
@@ -60,7 +60,7 @@ def main() -> None:
     parser.add_argument("--pairs", type=int, default=3, help="renders of each, alternating")
     parser.add_argument("--frames", type=int, default=120, help="output frames a render")
     args = parser.parse_args()
-    tmp = Path(tempfile.mkdtemp(prefix="usdmotion-before-"))
+    tmp = scratch_folder("usdmotion-before-")
     before = tmp / "tree"
     before.mkdir()
     archive = subprocess.run(["git", "archive", args.rev], cwd=ROOT, capture_output=True, check=True).stdout

@@ -21,7 +21,6 @@ import argparse
 import json
 import os
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -29,6 +28,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+from _common import scratch_folder  # noqa: E402
 WALK = Path(os.environ.get("USDMOTION_SHARED_DATA", ROOT.parent / "shared" / "data")) / "cmu/cgspeed_12_01_walk.bvh"
 STAGES = ("skin", "upload", "draw", "AA + read-back", "overlay", "encode")
 MODES = {"FXAA tiles": {}, "FXAA full-screen": {"fxaa_tiles": False}, "no AA": {"fxaa": False},
@@ -99,7 +99,7 @@ def main() -> None:
     from usdmotion.io import read_motion
 
     motion = read_motion(WALK, units="asf")
-    tmp = Path(tempfile.mkdtemp(prefix="usdmotion-stages-"))
+    tmp = scratch_folder("usdmotion-stages-")
     load = [os.getloadavg()[0]]
     result = {}
     for mode, extra in MODES.items():

@@ -44,7 +44,6 @@ import socket
 import statistics
 import subprocess
 import sys
-import tempfile
 import time
 import urllib.request
 from pathlib import Path
@@ -52,6 +51,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tests"))
+from _common import scratch_folder  # noqa: E402
 
 CSS = "#view{width:1280px;height:720px;flex:none}"
 
@@ -253,7 +253,7 @@ def main() -> None:
     from studio_support import running_studio
     from test_studio_browser import ARGS, CHROMIUM
 
-    tmp = Path(tempfile.mkdtemp(prefix="studio_bench_"))
+    tmp = scratch_folder("studio_bench_")
     take = make_take(tmp, args.frames)
     take_id = f"0/{take.name}"
     trees = [ROOT, *([args.peer.resolve()] if args.peer else [])]

@@ -22,7 +22,6 @@ import json
 import os
 import statistics
 import sys
-import tempfile
 import time
 import urllib.request
 from pathlib import Path
@@ -30,6 +29,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tests"))
+from _common import scratch_folder  # noqa: E402
 
 GOAL_MS = 100.0
 
@@ -81,7 +81,7 @@ def main() -> None:
     from usdmotion.studio.app import create_app
     from usdmotion.studio.takes import view_positions
 
-    folder = Path(tempfile.mkdtemp(prefix="studio_edits_"))
+    folder = scratch_folder("studio_edits_")
     path = make_take(folder, args.frames)
     motion = read_motion(path, units="asf")
     second = path.parent / "second.bvh"

@@ -26,13 +26,13 @@ import json
 import os
 import statistics
 import sys
-import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tests"))
 sys.path.insert(0, str(ROOT / "benchmarks"))
+from _common import scratch_folder  # noqa: E402
 
 #: Times every WebGL call and getContext; keeps those over 3 ms (they waited for the GPU process).
 GL_LOG = """(() => {
@@ -115,7 +115,7 @@ def main() -> None:
 
     from studio import make_take, studio_process, unread_copies
 
-    tmp = Path(tempfile.mkdtemp(prefix="studio_url_"))
+    tmp = scratch_folder("studio_url_")
     take = make_take(tmp, args.frames)
     trees = [ROOT, *([args.peer.resolve()] if args.peer else [])]
     pages = 2 if args.link else 1
