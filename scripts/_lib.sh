@@ -22,3 +22,14 @@ python311() {
     echo "setup: $what needs Python 3.11, found $("$py" --version 2>&1)" >&2; return 1; }
   echo "$py"
 }
+
+# ensure_free_disk MIB WHAT: fail with one line when the project's disk has less than MIB free
+# (pip otherwise stops half-way through the venv with "[Errno 28] No space left on device").
+ensure_free_disk() {
+  local need=$1 what=$2 free
+  free=$(df -Pm . | awk 'NR == 2 {print $4}')
+  if [ "$free" -lt "$need" ]; then
+    echo "setup: error: $what needs about $need MiB free on $(df -P . | awk 'NR == 2 {print $6}'), found $free MiB" >&2
+    return 1
+  fi
+}

@@ -7,6 +7,7 @@ cd "$(dirname "$0")/.."
 source scripts/_lib.sh
 ensure_apt "headless OpenGL via EGL" libegl1 libegl-mesa0 libgl1-mesa-dri libgles2
 if [ ! -x .venv/bin/python ]; then
+  ensure_free_disk 3000 "the virtual environment (1.7 GiB installed, with pip's build space)"
   PY=$(python311 "usdmotion (jax 0.10.2 and Blender's bpy pin it)")
   "$PY" -m venv .venv
 fi
