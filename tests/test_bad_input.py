@@ -316,6 +316,51 @@ def test_4_native_stderr_is_dropped_when_the_read_fails_and_nests(capfd):
     assert capfd.readouterr().err == "restored\n"
 
 
+def test_4_a_usdc_whose_counts_ask_for_gigabytes_is_refused_without_taking_them(tmp_path):
+    """A fuzz find: a 19 kB crate file whose stored count made USD allocate and fill 8.5 GB
+    (the campaign's process was killed by the OOM killer). Read capped, it is one line and
+    the process stays small. The child's own peak RSS (``wait4``); a 16 GiB ``RLIMIT_AS``
+    only keeps a regression from taking the machine with it (it then peaks at ~8.5 GB)."""
+    import resource
+
+    path = FUZZ / "convert_usdc_007.usdc"
+    err = tmp_path / "err.txt"
+
+    def safety_net():
+        resource.setrlimit(resource.RLIMIT_AS, (16 << 30, resource.getrlimit(resource.RLIMIT_AS)[1]))
+
+    with open(err, "wb") as stderr:
+        proc = subprocess.Popen([sys.executable, "-m", "usdmotion", "info", str(path)], stdout=subprocess.DEVNULL,
+                                stderr=stderr, preexec_fn=safety_net)
+        _, status, usage = os.wait4(proc.pid, 0)
+    assert os.waitstatus_to_exitcode(status) == 2
+    line = assert_one_line_error(2, err.read_text(), path, "damaged", "bad_alloc")
+    assert "@" not in line  # USD's ``while reading @file@`` is not repeated
+    assert usage.ru_maxrss < 1 << 20, f"peak RSS {usage.ru_maxrss / 1024:.0f} MiB"  # kB
+
+
+def test_4_the_address_space_cap_nests_and_restores_the_limit_before_it():
+    import resource
+
+    from usdmotion.address_space import _in_use, budget, capped_address_space
+
+    before = resource.getrlimit(resource.RLIMIT_AS)
+    with capped_address_space(WALK):
+        first = resource.getrlimit(resource.RLIMIT_AS)[0]
+        assert first != resource.RLIM_INFINITY and first >= budget(WALK)
+        with capped_address_space(WALK):  # a second read beside it (a Studio thread) gets room too
+            assert resource.getrlimit(resource.RLIMIT_AS)[0] == first + budget(WALK)
+        assert resource.getrlimit(resource.RLIMIT_AS)[0] >= first
+    assert resource.getrlimit(resource.RLIMIT_AS) == before
+    stricter = _in_use() + (1 << 30)  # a limit the user set (ulimit -v), lower than the cap would be: kept
+    resource.setrlimit(resource.RLIMIT_AS, (stricter, before[1]))
+    try:
+        with capped_address_space(WALK):
+            assert resource.getrlimit(resource.RLIMIT_AS)[0] == stricter
+    finally:
+        resource.setrlimit(resource.RLIMIT_AS, before)
+
+
 # -------------------------------------------------------- 6. options and documents
 
 
@@ -326,6 +371,36 @@ def test_6_a_joint_map_of_nested_arrays_is_refused_not_an_internal_error(tmp_pat
                        "--map", path)
     assert_one_line_error(code, err, path, "nested more than")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["map.json"]
+
+
+NESTED = "[" * 5000 + "]" * 5000  # ~10 kB: deeper than Python's JSON decoder recurses
+
+
+@pytest.mark.parametrize(("name", "text", "command"), [
+    # fuzz campaign find: segment-eval's check for a saved segments JSON recursed into the labels
+    ("labels.json", NESTED, ["segment-eval", WALK, "{file}", "--units", "asf"]),
+    ("labels.json", "5", ["segment-eval", WALK, "{file}", "--units", "asf"]),  # ``"cuts" in 5``: TypeError
+    ("pipeline.json", NESTED, ["edit", WALK, "{out}.bvh", "--units", "asf", "--pipeline", "{file}"]),
+    ("take.gltf", '{"asset": {"version": "2.0"}, "extras": ' + NESTED + "}", ["convert", "{file}", "{out}.usda"]),
+])
+def test_6_every_json_input_refuses_absurd_nesting_in_one_line(tmp_path, capfd, name, text, command):
+    path = tmp_path / name
+    path.write_text(text)
+    args = [str(a).replace("{file}", str(path)).replace("{out}", str(tmp_path / "out")) for a in command]
+    code, _, err = cli(capfd, *args)
+    line = assert_one_line_error(code, err, path)
+    assert "internal error" not in line and len(line) > len(f"usdmotion: error: {path}: ")
+    assert sorted(p.name for p in tmp_path.iterdir()) == [name]
+
+
+def test_6_json_or_none_refuses_what_parse_text_refuses():
+    from usdmotion.schemas import json_or_none
+
+    assert json_or_none(b'{"cuts": [1]}') == {"cuts": [1]}
+    assert json_or_none(NESTED) is None
+    assert json_or_none("[NaN]") is None
+    assert json_or_none(b"\xff{") is None
+    assert json_or_none("{") is None
 
 
 @pytest.mark.parametrize("content", [b"garbage\x00\x01", b"#usda 1.0\ndef Camera \"c\" {\n", b"",

@@ -193,6 +193,21 @@ def test_cross_site_and_non_json_posts_are_refused(studio):
     assert request(base, "DELETE", "/api/takes")[0] == 405
 
 
+def test_a_post_body_nested_deeper_than_json_recurses_is_a_400_and_the_studio_keeps_serving(studio):
+    """60 kB of nested arrays (under the 64 kB body limit) once escaped as a RecursionError."""
+    url = urlsplit(studio[0])
+    conn = http.client.HTTPConnection(url.hostname, url.port, timeout=30)
+    try:
+        conn.request("POST", "/api/edit/preview", body=b"[" * 30000 + b"]" * 30000,
+                     headers={"Content-Type": "application/json"})
+        response = conn.getresponse()
+        answer = json.loads(response.read())
+    finally:
+        conn.close()
+    assert (response.status, answer) == (400, {"error": "the request body is not JSON"})
+    assert request(studio[0], "GET", "/api/takes")[0] == 200
+
+
 def test_a_full_disk_fails_the_job_with_one_line_and_no_file(studio):
     """The write runs out of space half-way (ENOSPC from the file system, raised where the
     writer writes): the job fails with the atomic writer's one line and leaves nothing."""

@@ -60,6 +60,16 @@ def parse_text(text: str, path: str | os.PathLike | None, kind: str = "json") ->
     return document
 
 
+def json_or_none(text: str | bytes) -> Any:
+    """``text`` parsed as JSON, ``None`` where it is not a document :func:`parse_text` takes
+    (bad syntax or encoding, NaN/Infinity, nesting deeper than :data:`MAX_NESTING`): for the
+    readers that skip a file they cannot use rather than refuse it."""
+    try:
+        return parse_text(text, None)
+    except (InputError, UnicodeDecodeError):
+        return None
+
+
 def nesting_depth(document: Any) -> int:
     """Deepest nesting of lists/dicts in ``document`` (a scalar is 0), without recursion."""
     deepest, stack = 0, [(document, 0)]

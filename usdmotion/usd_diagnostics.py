@@ -17,6 +17,10 @@ file …/stage.cpp : '…'`` records, and warnings go straight to stderr
   :func:`usd_diagnostics` redirects fd 2 to a temporary file for the block and turns what
   was captured into its warning, or drops it when the block raised (the error says what
   is wrong); usdmotion's own lines written meanwhile are passed on.
+* While :func:`usd_diagnostics` reads a file, the address space is capped
+  (:func:`usdmotion.address_space.capped_address_space`): a damaged ``.usdc`` whose counts
+  ask for gigabytes fails with ``bad_alloc``, reported as a damaged file, instead of
+  filling the machine's memory until the kernel kills the process.
 """
 
 from __future__ import annotations
@@ -30,6 +34,7 @@ import threading
 import warnings
 from collections.abc import Iterator
 
+from usdmotion.address_space import capped_address_space
 from usdmotion.errors import InputError, UsdMotionWarning, UsdReadError
 
 #: At most this many distinct USD warnings are shown per file (then a count).
@@ -69,6 +74,8 @@ def usd_error_message(error: str | BaseException) -> tuple[int | None, str]:
         if where and where["file"]:
             return int(where["line"]), _clean(where["msg"]) or "cannot parse"
     message = _clean(records[0]) if records and records[0] else ""
+    if "bad_alloc" in message:  # the crate reader sized a buffer from a damaged count (address_space)
+        message = "damaged: a size stored in the file asks for more memory than the file could hold (USD: bad_alloc)"
     return None, message or "cannot open as USD"
 
 
@@ -175,7 +182,7 @@ def usd_diagnostics(path: str | os.PathLike) -> Iterator[None]:
     from pxr import Tf
 
     path = os.fspath(path)
-    with native_stderr() as printed, Tf.DiagnosticTrap() as trap:
+    with native_stderr() as printed, Tf.DiagnosticTrap() as trap, capped_address_space(path):
         def trapped() -> list[str]:
             texts = [_warning_text(d) for d in list(trap.GetWarnings()) + list(trap.GetErrors())]
             trap.Clear()

@@ -69,7 +69,12 @@ def _saved_cuts(path: Path, n_frames: int) -> list[int]:
 
 
 def _is_ours(path: Path) -> bool:
+    """Whether ``path`` is a saved segments JSON (an object with ``cuts``); any other file is
+    left to :func:`~usdmotion.ops.segment.evaluate.load_labels`, which says what is wrong with it."""
+    from usdmotion.schemas import json_or_none
+
     try:
-        return "cuts" in json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+        document = json_or_none(path.read_bytes())  # absurd nesting refused, not recursed
+    except OSError:
         return False
+    return isinstance(document, dict) and "cuts" in document

@@ -17,7 +17,6 @@ animation of those nodes' rotation / translation. The reader
 from __future__ import annotations
 
 import base64
-import json
 import os
 import struct
 import warnings
@@ -29,6 +28,7 @@ from usdmotion.errors import InputError, UsdMotionError, UsdMotionWarning
 from usdmotion.motion import Motion
 from usdmotion.rotations import (axis_angle_quat, matrix_to_quat, quat_conjugate, quat_mul, quat_normalize,
                                  quat_rotate, quat_slerp, xyzw_to_wxyz)
+from usdmotion.schemas import parse_text
 
 GLB_MAGIC = b"glTF"
 EXTRAS_KEY = "usdmotion"  # skins[s].extras[EXTRAS_KEY]: what usdmotion keeps of the source (see io.gltf)
@@ -83,9 +83,16 @@ def _load(path: Path):
     else:
         text = data
     try:
-        document = json.loads(text.decode("utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise InputError(path, f"the glTF JSON is not valid JSON: {exc}") from None
+        text = text.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise InputError(path, f"the glTF JSON is not UTF-8 text: {exc}") from None
+    try:
+        document = parse_text(text, path)  # bad syntax, NaN, absurd nesting: one line
+    except InputError as exc:
+        if binary is None and data[:4] != GLB_MAGIC:
+            raise  # a .gltf: the line and column are the file's
+        where = f" (line {exc.line}, column {exc.column} of the chunk)" if exc.line is not None else ""
+        raise InputError(path, f"the GLB's JSON chunk: {exc.message}{where}") from None
     if not isinstance(document, dict):
         raise InputError(path, "the glTF JSON is not an object")
     version = str((document.get("asset") or {}).get("version", ""))

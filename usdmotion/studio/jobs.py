@@ -288,9 +288,9 @@ async def json_body(request, max_bytes: int = 64 * 1024) -> dict:
     data = await request.body()
     if len(data) > max_bytes:
         raise StudioError(413, "request too large")
-    try:
+    try:  # NaN is let through to the field checks, which name the field
         body = json.loads(data or b"{}")
-    except (ValueError, UnicodeDecodeError):
+    except (ValueError, UnicodeDecodeError, RecursionError):  # 64 kB of '[' nests deeper than Python recurses
         raise StudioError(400, "the request body is not JSON") from None
     if not isinstance(body, dict):
         raise StudioError(400, "the request body must be a JSON object")

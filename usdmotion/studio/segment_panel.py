@@ -33,6 +33,7 @@ from starlette.responses import JSONResponse, Response
 from starlette.routing import Route
 
 from usdmotion.errors import error_line
+from usdmotion.schemas import json_or_none
 from usdmotion.studio.errors import StudioError
 from usdmotion.studio.jobs import json_body, library_name, output_path
 
@@ -116,7 +117,7 @@ def read_labels(path: Path) -> list[str]:
         if path.suffix.lower() == ".csv":
             rows = csv.DictReader(text.splitlines())
             return [r["label"] for r in rows if isinstance(r.get("label"), str)]
-        doc = json.loads(text)
+        doc = json_or_none(text)
         segments = doc.get("segments") if isinstance(doc, dict) else None
         return [s["label"] for s in segments or [] if isinstance(s, dict) and isinstance(s.get("label"), str)]
     except (OSError, ValueError, csv.Error):
@@ -347,8 +348,8 @@ class SegmentPanel:
 def saved_for(path: Path) -> str | None:
     """The ``file`` a saved segments document names (``None`` if it names none or cannot be read)."""
     try:
-        doc = json.loads(path.read_text(encoding="utf-8")) if path.stat().st_size <= MAX_LABEL_FILE_BYTES else None
-    except (OSError, ValueError):
+        doc = json_or_none(path.read_bytes()) if path.stat().st_size <= MAX_LABEL_FILE_BYTES else None
+    except OSError:
         return None
     return doc.get("file") if isinstance(doc, dict) and isinstance(doc.get("file"), str) else None
 

@@ -19,6 +19,7 @@ from usdmotion.io import read_motion
 from usdmotion.motion import Motion
 from usdmotion.ops.edit._common import EditError, frames_of
 from usdmotion.resources import resource_path
+from usdmotion.schemas import parse_text
 
 SCHEMA_PATH = resource_path("schemas", "edit-pipeline.schema.json")
 
@@ -36,14 +37,12 @@ def load_pipeline(path: str | os.PathLike) -> list[dict]:
     """Read and validate a pipeline file; returns its list of operations."""
     path = Path(path)
     try:
-        document = json.loads(path.read_text(encoding="utf-8"))
+        text = path.read_text(encoding="utf-8")
     except OSError as exc:
         raise InputError(path, f"cannot read: {exc.strerror or exc}") from None
     except UnicodeDecodeError:
         raise InputError(path, "not a UTF-8 text file") from None
-    except json.JSONDecodeError as exc:
-        raise InputError(path, f"not valid JSON: {exc.msg}", line=exc.lineno, column=exc.colno) from None
-    return validate_pipeline(document, path)
+    return validate_pipeline(parse_text(text, path), path)  # bad JSON, NaN, absurd nesting: one line
 
 
 def validate_pipeline(document, path: str | os.PathLike | None = None) -> list[dict]:
