@@ -177,6 +177,27 @@ def test_syntax_variants_against_reference_fk(root_offset):
     assert np.allclose(again.values, data.values, rtol=1e-6, atol=1e-9)
 
 
+def test_names_a_bvh_cannot_hold_are_written_so_they_read_back(tmp_path):
+    """A fuzz find: a USD skeleton's ``jointNames`` entry that was empty became ``JOINT`` with
+    no name, exit 0, and a file that does not read back. Names from USD or glTF (empty,
+    whitespace runs, braces) are written as they read back, unique, with a warning."""
+    import dataclasses
+
+    motion = motion_from_bvh(parse_bvh(SYNTHETIC))
+    names = ("", "mixamorig:Spine", "Arm  {x}", "Arm_End", "Head", "Head_End", "\tHead\n")
+    odd = dataclasses.replace(motion, joint_names=names)
+    with pytest.warns(UsdMotionWarning, match="3 joint names written as BVH can hold them"):
+        write_bvh(odd, tmp_path / "odd.bvh")
+    back = read_bvh(tmp_path / "odd.bvh")
+    # (an End Site has no name in the file: the reader names it after its joint)
+    assert back.joint_names == ("joint0", "mixamorig:Spine", "Arm _x_", "Arm _x__End", "Head", "Head_End", "Head_6")
+    assert np.allclose(joint_positions(back), joint_positions(odd), atol=1e-6)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # names a BVH holds: no warning, unchanged
+        write_bvh(motion, tmp_path / "plain.bvh")
+    assert read_bvh(tmp_path / "plain.bvh").joint_names == motion.joint_names
+
+
 def test_root_offset_conventions_differ_by_the_offset():
     data = parse_bvh(SYNTHETIC)
     add = joint_positions(motion_from_bvh(data, root_offset="add"))

@@ -8,11 +8,13 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import warnings
 from pathlib import Path
 
 import numpy as np
 
 from usdmotion.channels import channel_columns, default_channels, euler_columns, rotation_order
+from usdmotion.errors import UsdMotionWarning
 from usdmotion.io.atomic import atomic_output
 from usdmotion.io.bvh_header import frame_time_text
 from usdmotion.motion import POSITION_CHANNELS, ROTATION_CHANNELS, Motion
@@ -141,15 +143,33 @@ def _rows_text(values: np.ndarray) -> str:
     return sink.getvalue().to_pybytes().decode("ascii")
 
 
+def bvh_names(names: tuple[str, ...]) -> tuple[str, ...]:
+    """``names`` as a BVH file can hold them: a name reads back as its words joined by one
+    space up to a brace, so runs of whitespace become one space, braces ``_``, and an empty
+    name ``joint<J>``; a name that then repeats another gets ``_<J>``."""
+    out: list[str] = []
+    for j, name in enumerate(names):
+        text = " ".join(name.replace("{", "_").replace("}", "_").split()) or f"joint{j}"
+        out.append(f"{text}_{j}" if text != name and text in names or text in out else text)
+    return tuple(out)
+
+
 def write_bvh(motion: Motion, path: str | os.PathLike, decimals: int = 9) -> Path:
     """Write ``motion`` as BVH (atomically: temp file, then rename).
 
     Uses the channel layout the motion was read with (``motion.channels``), else
     :func:`default_channels`; joints are written in depth-first order. Values are
-    rounded to ``decimals`` decimals.
+    rounded to ``decimals`` decimals. Joint names a BVH file cannot hold (from USD or
+    glTF: empty, braces, line breaks) are written as :func:`bvh_names` makes them, with a warning.
     """
-    text = bvh_text(motion, decimals=decimals)
     path = Path(path)
+    names = bvh_names(motion.joint_names)
+    if names != motion.joint_names:
+        changed = [f"{old!r} -> {new!r}" for old, new in zip(motion.joint_names, names) if old != new]
+        warnings.warn(f"{path}: {len(changed)} joint names written as BVH can hold them: {', '.join(changed[:3])}"
+                      f"{' …' if len(changed) > 3 else ''}", UsdMotionWarning, stacklevel=2)
+        motion = dataclasses.replace(motion, joint_names=names)
+    text = bvh_text(motion, decimals=decimals)
     with atomic_output(path) as tmp:
         tmp.write_text(text, encoding="utf-8")
     return path
