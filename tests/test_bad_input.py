@@ -316,14 +316,15 @@ def test_4_native_stderr_is_dropped_when_the_read_fails_and_nests(capfd):
     assert capfd.readouterr().err == "restored\n"
 
 
-def test_4_a_usdc_whose_counts_ask_for_gigabytes_is_refused_without_taking_them(tmp_path):
-    """A fuzz find: a 19 kB crate file whose stored count made USD allocate and fill 8.5 GB
-    (the campaign's process was killed by the OOM killer). Read capped, it is one line and
-    the process stays small. The child's own peak RSS (``wait4``); a 16 GiB ``RLIMIT_AS``
-    only keeps a regression from taking the machine with it (it then peaks at ~8.5 GB)."""
+@pytest.mark.parametrize("name", ["convert_usdc_007.usdc", "convert_usdc_008.usdc"])
+def test_4_a_usdc_whose_counts_ask_for_gigabytes_is_refused_without_taking_them(tmp_path, name):
+    """Fuzz finds: 19 kB crate files whose stored counts made USD allocate and fill 8.5 GB
+    (the campaign's process was killed by the OOM killer) and 3.7 GB. Read capped, each is
+    one line and the process stays small. The child's own peak RSS (``wait4``); a 16 GiB
+    ``RLIMIT_AS`` only keeps a regression from taking the machine with it."""
     import resource
 
-    path = FUZZ / "convert_usdc_007.usdc"
+    path = FUZZ / name
     err = tmp_path / "err.txt"
 
     def safety_net():
@@ -337,6 +338,17 @@ def test_4_a_usdc_whose_counts_ask_for_gigabytes_is_refused_without_taking_them(
     line = assert_one_line_error(2, err.read_text(), path, "damaged", "bad_alloc")
     assert "@" not in line  # USD's ``while reading @file@`` is not repeated
     assert usage.ru_maxrss < 1 << 20, f"peak RSS {usage.ru_maxrss / 1024:.0f} MiB"  # kB
+
+
+def test_4_a_read_past_the_end_of_a_crate_file_is_named_damaged_in_one_line():
+    from usdmotion.usd_diagnostics import usd_error_message
+
+    said = ("Error in 'pxrInternal_v0_26_11__pxrReserved__::UsdStage::Open' at line 1 in file stage.cpp : "
+            "'Encountered: Read out-of-bounds: 3743481696 bytes at offset 19202 in a mapping of length 19397, "
+            "while reading @/data/take.usdc@'")
+    assert usd_error_message(said) == (None, "damaged: a size stored in the file points past its end (USD: Read "
+                                             "out-of-bounds: 3743481696 bytes at offset 19202 in a mapping of "
+                                             "length 19397)")
 
 
 def test_4_the_address_space_cap_nests_and_restores_the_limit_before_it():

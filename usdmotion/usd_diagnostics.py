@@ -43,6 +43,7 @@ MAX_WARNINGS = 5
 _RECORD = re.compile(r"Error in '[^']*' at line \d+ in file [^:]* : '(.*?)'\s*(?=\n\s*Error in |\Z)", re.S)
 _NAMESPACE = re.compile(r"pxrInternal_v\w*?__pxrReserved__::|\b\w+::")
 _CONTROL = re.compile(r"\x1b\[[0-9;?]*[A-Za-z]|\x1b\][^\x07]*\x07|[\r\x00-\x08\x0b-\x1f]")
+_OUT_OF_BOUNDS = re.compile(r"Read out-of-bounds: \d+ bytes at offset \d+ in a mapping of length \d+")
 _WHERE = re.compile(r"^@?(?P<file>[^@\n]*?)@?:(?P<line>\d+):(?:(?P<col>\d+):)?\s*(?P<msg>.*)$", re.S)
 
 
@@ -76,6 +77,9 @@ def usd_error_message(error: str | BaseException) -> tuple[int | None, str]:
     message = _clean(records[0]) if records and records[0] else ""
     if "bad_alloc" in message:  # the crate reader sized a buffer from a damaged count (address_space)
         message = "damaged: a size stored in the file asks for more memory than the file could hold (USD: bad_alloc)"
+    elif "Read out-of-bounds" in message:  # ... a count that fit the cap, checked only after the allocation
+        said = _OUT_OF_BOUNDS.search(message)
+        message = f"damaged: a size stored in the file points past its end (USD: {said[0] if said else 'out of bounds'})"
     return None, message or "cannot open as USD"
 
 
