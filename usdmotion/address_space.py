@@ -2,8 +2,8 @@
 
 USD's crate (``.usdc``) reader sizes its buffers from counts stored in the file and only
 then checks them against the file: a damaged 19 kB ``.usdc`` (a fuzz campaign find) made it
-allocate and fill 8.5 GB (another 3.7 GB), and on a 24 GB machine the kernel's OOM killer ended the process,
-with no error line. Inside :func:`capped_address_space` such an allocation fails at once
+allocate and fill 8.5 GB (another one 3.7 GB), and on a 24 GB machine the kernel's OOM
+killer ended the process, with no error line. Inside :func:`capped_address_space` such an allocation fails at once
 (``std::bad_alloc``, which USD reports as an error) while every real read fits the budget:
 :data:`BASE_BYTES` plus :data:`PER_CORE_BYTES` per core (TBB's worker threads, their
 stacks and malloc arenas) plus :data:`PER_FILE_BYTE` bytes per byte of the file.
