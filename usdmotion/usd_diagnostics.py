@@ -79,7 +79,8 @@ def usd_error_message(error: str | BaseException) -> tuple[int | None, str]:
         message = "damaged: a size stored in the file asks for more memory than the file could hold (USD: bad_alloc)"
     elif "Read out-of-bounds" in message:  # ... a count that fit the cap, checked only after the allocation
         said = _OUT_OF_BOUNDS.search(message)
-        message = f"damaged: a size stored in the file points past its end (USD: {said[0] if said else 'out of bounds'})"
+        said = said[0] if said else "out of bounds"
+        message = f"damaged: a size stored in the file points past its end (USD: {said})"
     return None, message or "cannot open as USD"
 
 
