@@ -36,7 +36,9 @@ def test_edited_cuts_make_a_valid_document_with_labels(walk_seg, tmp_path):
 
 @pytest.mark.parametrize("cuts, message", [([0, 100], "within 1..523"), ([100, 524], "within 1..523"),
                                            ([200, 100], "increasing"), ([100, 100], "increasing"),
-                                           ([1.5], "whole frame"), ([True], "whole frame")])
+                                           ([1.5], "whole frame"), ([True], "whole frame"),
+                                           # a Studio fuzz find: an OverflowError (a 500) converting to int64
+                                           ([100, 2**63], "within 1..523"), ([-(2**70)], "within 1..523")])
 def test_bad_cuts_are_refused(walk_seg, cuts, message):
     with pytest.raises(ValueError, match=message):
         edited(walk_seg, cuts)

@@ -39,9 +39,9 @@ def edited(seg: Segmentation, cuts: Sequence[int]) -> Segmentation:
     values = list(cuts)
     if not all(isinstance(c, (int, np.integer)) and not isinstance(c, bool) for c in values):
         raise ValueError("cuts must be whole frame numbers")
-    array = np.asarray(values, dtype=np.int64).reshape(-1)
-    if array.size and (array[0] < 1 or array[-1] > seg.n_frames - 1):
+    if not all(1 <= c <= seg.n_frames - 1 for c in values):  # before int64: 2**63 would overflow it
         raise ValueError(f"cuts must be frames within 1..{seg.n_frames - 1}")
+    array = np.asarray(values, dtype=np.int64).reshape(-1)
     if np.any(np.diff(array) <= 0):
         raise ValueError("cuts must be increasing, at most one per frame")
     return dataclasses.replace(seg, cuts=array, confidence=None, regions=None, edited=True)
