@@ -339,6 +339,30 @@ def test_two_skins_pick_one_with_an_option(good, tmp_path, capsys):
     assert not (tmp_path / "c.bvh").exists()
 
 
+@pytest.mark.parametrize(("extras", "warning"), [
+    ({"endSites": [0]}, "endSites that are not leaf joints"),  # the root, which has children
+    ({"endSites": [2**70]}, "malformed usdmotion metadata"),  # past int64
+    ({"channels": ["Xrotation Nope"]}, "channel layout"),  # one layout for every joint, and no such channel
+])
+def test_a_glb_source_layout_is_distrusted_as_usd_custom_data_is(good, tmp_path, capsys, extras, warning):
+    """A fuzz find: a GLB whose usdmotion extras marked a joint with children as an End Site
+    converted to a BVH whose End Site held a JOINT, exit 0, a file that did not read back.
+    The extras now go through the USD reader's check (``channels.trusted_layout``)."""
+    from usdmotion.errors import UsdMotionWarning
+
+    document, binary = good
+    changed = json.loads(json.dumps(document))
+    changed["skins"][0].setdefault("extras", {}).setdefault("usdmotion", {}).update(extras)
+    path = tmp_path / "layout.glb"
+    path.write_bytes(_glb(changed, binary))
+    with pytest.warns(UsdMotionWarning, match=warning):
+        motion = read_motion(path)
+    assert main(["convert", str(path), str(tmp_path / "out.bvh")]) == 0
+    back = read_motion(tmp_path / "out.bvh")
+    assert back.n_joints == motion.n_joints
+    assert np.allclose(joint_positions(back), joint_positions(motion), atol=1e-4 * skeleton_height(motion))
+
+
 def test_build_gltf_names_every_joint_node(shared_file):
     motion = read_motion(shared_file("other_rigs/20tab_test_freebvh_mixamorig.bvh")).sliced(0, 3)
     gltf = build_gltf(motion)

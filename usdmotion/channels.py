@@ -8,11 +8,14 @@ channels is the joint's Euler order. Units are metres per file unit.
 from __future__ import annotations
 
 import dataclasses
+import warnings
+from pathlib import Path
 
 import numpy as np
 
 from usdmotion.constants import MAX_METERS_PER_UNIT, METERS_PER_UNIT, MIN_METERS_PER_UNIT
-from usdmotion.motion import ROTATION_CHANNELS, Motion
+from usdmotion.errors import UsdMotionWarning
+from usdmotion.motion import CHANNEL_NAMES, ROTATION_CHANNELS, Motion
 
 DEFAULT_ROOT_CHANNELS = ("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation")
 DEFAULT_JOINT_CHANNELS = ("Zrotation", "Xrotation", "Yrotation")
@@ -88,3 +91,37 @@ def override_units_axis(motion: Motion, units: str | float | None = None, up_axi
     if up_axis is not None:
         changes["up_axis"] = up_axis
     return dataclasses.replace(motion, **changes) if changes else motion
+
+
+def trusted_layout(custom: dict, parents: np.ndarray, path: Path, where) -> tuple[np.ndarray, tuple | None]:
+    """``(end_sites (J,), channels)`` from the source layout usdmotion keeps in a file (a USD
+    skeleton's customData, a glTF skin's extras), distrusted: end sites must be leaves,
+    channels known BVH names without repeats and none on an end site; metadata that fails is
+    ignored with a warning (defaults: no end sites, a default layout)."""
+    n = parents.size
+    end_sites = np.zeros(n, bool)
+    try:
+        listed = np.array([int(j) for j in custom.get("endSites", [])], np.int64)
+        channels = custom.get("channels")
+        channels = None if channels is None else tuple(tuple(str(c).split()) for c in channels)
+    except (TypeError, ValueError, OverflowError):  # OverflowError: a JSON integer past int64
+        listed, channels = np.zeros(0, np.int64), None
+        warnings.warn(f"{path}: {where}: ignoring malformed usdmotion metadata", UsdMotionWarning, stacklevel=4)
+    has_child = np.zeros(n, bool)
+    has_child[parents[parents >= 0]] = True
+    if listed.size and (np.any((listed < 0) | (listed >= n)) or has_child[listed[(listed >= 0) & (listed < n)]].any()):
+        warnings.warn(f"{path}: {where}: ignoring usdmotion endSites that are not leaf joints", UsdMotionWarning,
+                      stacklevel=4)
+    elif listed.size:
+        end_sites[listed] = True
+    if channels is not None:
+        bad = [c for cs in channels for c in cs if c not in CHANNEL_NAMES]
+        repeated = any(len(set(cs)) != len(cs) for cs in channels)
+        on_end_site = any(channels[j] for j in np.flatnonzero(end_sites)) if len(channels) == n else False
+        if len(channels) != n or bad or repeated or on_end_site:
+            why = (f"{bad[0]!r} is not a BVH channel" if bad else "a channel repeats" if repeated
+                   else "an end site has channels" if on_end_site else f"{len(channels)} layouts for {n} joints")
+            warnings.warn(f"{path}: {where}: ignoring the usdmotion channel layout ({why}); a default layout "
+                          "is used for BVH output", UsdMotionWarning, stacklevel=4)
+            channels = None
+    return end_sites, channels

@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from usdmotion.channels import trusted_layout
 from usdmotion.errors import InputError, UsdMotionError, UsdMotionWarning
 from usdmotion.motion import Motion
 from usdmotion.rotations import (axis_angle_quat, matrix_to_quat, quat_conjugate, quat_mul, quat_normalize,
@@ -474,13 +475,7 @@ def _read(path: Path, skin: str | int | None) -> Motion:
 
     moving = np.abs(translations[:, 1:] - offsets[1:]).max(initial=0.0) > 1e-6 * max(
         1.0, float(np.abs(offsets).max(initial=0.0)))
-    end_sites = np.zeros(n_joints, bool)
-    stored_ends = extras.get("endSites")
-    if isinstance(stored_ends, list):
-        end_sites[[int(j) for j in stored_ends if isinstance(j, int) and 0 <= j < n_joints]] = True
-    stored_channels = extras.get("channels")
-    channel_layout = (tuple(tuple(str(c).split()) for c in stored_channels)
-                      if isinstance(stored_channels, list) and len(stored_channels) == n_joints else None)
+    end_sites, channel_layout = trusted_layout(extras, parents, path, f"skin {skin_index} extras")
     return Motion(
         joint_names=_names(gltf, order),
         parents=parents,

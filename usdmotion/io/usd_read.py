@@ -40,7 +40,8 @@ import numpy as np
 from usdmotion.errors import UsdMotionWarning, UsdReadError
 from usdmotion.io.usd_samples import animation_arrays, blend_shape_weights, frame_times, stage_rate
 from usdmotion.io.usd_skin import read_skinned_meshes
-from usdmotion.motion import CHANNEL_NAMES, Motion
+from usdmotion.channels import trusted_layout
+from usdmotion.motion import Motion
 from usdmotion.rotations import quat_conjugate, quat_mul, quat_rotate
 
 CUSTOM_KEY = "usdmotion"
@@ -282,39 +283,6 @@ def skeleton_topology(skel, path: Path):
     if not ok:
         raise UsdReadError(path, f"skeleton {skel.GetPath()}: {reason}")
     return query, np.asarray(topology.GetParentIndices(), dtype=np.int64), [str(t) for t in query.GetJointOrder()]
-
-
-def trusted_layout(custom: dict, parents: np.ndarray, path: Path, where) -> tuple[np.ndarray, tuple | None]:
-    """``(end_sites (J,), channels)`` from our customData, distrusted: end sites must be
-    leaves, channels known BVH names without repeats and none on an end site; metadata
-    that fails is ignored with a warning (defaults: no end sites, a default layout)."""
-    n = parents.size
-    end_sites = np.zeros(n, bool)
-    try:
-        listed = np.array([int(j) for j in custom.get("endSites", [])], np.int64)
-        channels = custom.get("channels")
-        channels = None if channels is None else tuple(tuple(str(c).split()) for c in channels)
-    except (TypeError, ValueError):
-        listed, channels = np.zeros(0, np.int64), None
-        warnings.warn(f"{path}: {where}: ignoring malformed usdmotion customData", UsdMotionWarning, stacklevel=4)
-    has_child = np.zeros(n, bool)
-    has_child[parents[parents >= 0]] = True
-    if listed.size and (np.any((listed < 0) | (listed >= n)) or has_child[listed[(listed >= 0) & (listed < n)]].any()):
-        warnings.warn(f"{path}: {where}: ignoring customData endSites that are not leaf joints", UsdMotionWarning,
-                      stacklevel=4)
-    elif listed.size:
-        end_sites[listed] = True
-    if channels is not None:
-        bad = [c for cs in channels for c in cs if c not in CHANNEL_NAMES]
-        repeated = any(len(set(cs)) != len(cs) for cs in channels)
-        on_end_site = any(channels[j] for j in np.flatnonzero(end_sites)) if len(channels) == n else False
-        if len(channels) != n or bad or repeated or on_end_site:
-            why = (f"{bad[0]!r} is not a BVH channel" if bad else "a channel repeats" if repeated
-                   else "an end site has channels" if on_end_site else f"{len(channels)} layouts for {n} joints")
-            warnings.warn(f"{path}: {where}: ignoring the customData channel layout ({why}); a default layout "
-                          "is used for BVH output", UsdMotionWarning, stacklevel=4)
-            channels = None
-    return end_sites, channels
 
 
 def rest_transforms(skel, n_joints: int, path: Path) -> np.ndarray:
