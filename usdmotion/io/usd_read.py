@@ -37,10 +37,10 @@ from pathlib import Path
 
 import numpy as np
 
+from usdmotion.channels import trusted_layout
 from usdmotion.errors import UsdMotionWarning, UsdReadError
 from usdmotion.io.usd_samples import animation_arrays, blend_shape_weights, frame_times, stage_rate
 from usdmotion.io.usd_skin import read_skinned_meshes
-from usdmotion.channels import trusted_layout
 from usdmotion.motion import Motion
 from usdmotion.rotations import quat_conjugate, quat_mul, quat_rotate
 
