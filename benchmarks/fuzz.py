@@ -10,6 +10,11 @@ entry point and writes ``benchmarks/results/fuzz.json``. With ``--save`` each di
 defect is kept as a reproducer in ``tests/data/malformed/fuzz/`` (file + command in
 ``manifest.json``), which ``tests/test_bad_input.py`` replays.
 
+A case that takes the process past ``--max-rss-gb`` of memory (default 6) is a defect too: a
+watchdog thread prints it, keeps its input with ``--save`` and ends the campaign (the case
+itself may be stuck in native code; otherwise the kernel's OOM killer ends the process with
+no word of which input did it).
+
 GLB input is fuzzed too (byte-level mutations of a binary glTF); ASF and AMC as a pair: a
 mutated ASF under the valid AMC seed, a mutated AMC on the valid ASF seed (convert, info).
 """
@@ -19,11 +24,13 @@ from __future__ import annotations
 import argparse
 import collections
 import json
+import os
 import random
 import re
 import shutil
 import sys
 import tempfile
+import threading
 import time
 import warnings
 from pathlib import Path
@@ -60,7 +67,38 @@ def _save(case_name: str, data: bytes | None, suffix: str, args: list[str], reas
     manifest_path.write_text(json.dumps(manifest, indent=1) + "\n")
 
 
-def campaign(minutes: float, seed: int, save: bool, only: list[str] | None = None) -> dict:
+def _stored(args: list[str], seeds: dict, src: Path, out_dir: Path) -> list[str]:
+    """``args`` with the campaign's temporary paths as the placeholders the manifest keeps."""
+    return [a.replace(str(seeds["walk"]), "{walk}").replace(str(src), "{src}").replace(str(out_dir / "out"), "{out}")
+            .replace(str(seeds["asf"]), "{asf}").replace(str(seeds["amc"]), "{amc}") for a in args]
+
+
+def _rss_bytes() -> int:
+    with open("/proc/self/statm") as statm:
+        return int(statm.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+
+
+def watch_memory(limit_bytes: float, case: dict, save: bool, seen: set, work: Path) -> None:
+    """Start a daemon thread that, once this process's RSS passes ``limit_bytes``, reports
+    the running ``case`` (``{"name", "data", "suffix", "args", "stored"}``) as a defect on the
+    real stdout (a case's own output is captured), keeps it with ``save``, removes ``work``
+    and exits with status 3."""
+    stdout = os.dup(1)
+
+    def run() -> None:
+        while _rss_bytes() <= limit_bytes:
+            time.sleep(0.05)
+        reason = f"memory: the process passed {limit_bytes / 2**30:.1f} GB of RSS"
+        os.write(stdout, f"DEFECT {case.get('name')}: {reason}; usdmotion {' '.join(case.get('args', []))}\n".encode())
+        if save and case.get("name"):
+            _save(case["name"], case["data"], case["suffix"], case["stored"], reason, seen)
+        shutil.rmtree(work, ignore_errors=True)
+        os._exit(3)
+
+    threading.Thread(target=run, daemon=True).start()
+
+
+def campaign(minutes: float, seed: int, save: bool, only: list[str] | None = None, max_rss_gb: float = 6.0) -> dict:
     rng = random.Random(seed)
     work = Path(tempfile.mkdtemp(prefix="usdmotion-fuzz-"))
     seeds = make_seeds(work / "seeds")
@@ -68,6 +106,8 @@ def campaign(minutes: float, seed: int, save: bool, only: list[str] | None = Non
     counts: dict[str, collections.Counter] = collections.defaultdict(collections.Counter)
     defects: list[dict] = []
     seen: set = set()
+    running: dict = {}  # the case now running, for the memory watchdog
+    watch_memory(max_rss_gb * 2**30, running, save, seen, work)
     names, weights = zip(*[(k, w) for k, w in WEIGHTS.items() if not only or k in only])
     deadline = time.monotonic() + 60 * minutes
     started = time.monotonic()
@@ -89,6 +129,7 @@ def campaign(minutes: float, seed: int, save: bool, only: list[str] | None = Non
                 src = case_dir / f"input{suffix}"
                 src.write_bytes(data)
             args = expand(template, src, out_dir / "out", seeds["walk"], seeds)
+            running.update(name=name, data=data, suffix=suffix, args=args, stored=_stored(args, seeds, src, out_dir))
             with warnings.catch_warnings():
                 outcome = run_case(args, out_dir)
             counts[name][outcome.kind] += 1
@@ -96,10 +137,7 @@ def campaign(minutes: float, seed: int, save: bool, only: list[str] | None = Non
                 defects.append({"entry_point": name, "reason": outcome.reason, "args": args})
                 print(f"DEFECT {name}: {outcome.reason}", flush=True)
                 if save:
-                    stored = [a.replace(str(seeds["walk"]), "{walk}").replace(str(src), "{src}")
-                              .replace(str(out_dir / "out"), "{out}").replace(str(seeds["asf"]), "{asf}")
-                              .replace(str(seeds["amc"]), "{amc}") for a in args]
-                    _save(name, data, suffix, stored, outcome.reason, seen)
+                    _save(name, data, suffix, running["stored"], outcome.reason, seen)
             shutil.rmtree(case_dir, ignore_errors=True)
             n += 1
     finally:
@@ -116,11 +154,12 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--save", action="store_true", help="keep each distinct defect in tests/data/malformed/fuzz")
     parser.add_argument("--only", help=f"comma-separated entry points (of {', '.join(WEIGHTS)})")
+    parser.add_argument("--max-rss-gb", type=float, default=6.0, help="a case past this much memory is a defect")
     args = parser.parse_args()
     only = args.only.split(",") if args.only else None
     if only and not set(only) <= set(WEIGHTS):
         parser.error(f"unknown entry points: {', '.join(sorted(set(only) - set(WEIGHTS)))}")
-    result = campaign(args.minutes, args.seed, args.save, only)
+    result = campaign(args.minutes, args.seed, args.save, only, args.max_rss_gb)
     rows = [[name, sum(c.values()), c.get("ok", 0), c.get("clean", 0), c.get("defect", 0)]
             for name, c in result["counts"].items()]
     rows.append(["total", sum(r[1] for r in rows), sum(r[2] for r in rows), sum(r[3] for r in rows),
