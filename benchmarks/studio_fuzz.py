@@ -51,6 +51,17 @@ OP_KEYS = ["gains", "preset", "joint", "subtree", "translations", "rotate", "hea
            "keys", "falloff", "frame", "channel", "with", "transition", "at", "offset", "speed0", "speed1", "align",
            "align_joint", "align_channel", "curve", "method", "joint_map", "interp", "factor", "fps", "start", "stop",
            "loops"]
+#: Job-starting endpoints (one job at a time) and the options their bodies take.
+JOB_POSTS = ["/api/retarget", "/api/video", "/api/retarget/save"]
+JOB_OPTIONS = {"method": ["lm", "adam"], "lengths": ["source", "target"], "init": ["auto", "copy", "compose", "aim"],
+               "scale": ["units", "height", "1.0", "0.01", "2", "-1", "nan", "inf", "", 0, 1.5],
+               "iterations": [0, 1, 5, 20], "remove": [["LeftHand"], "LeftHand,RightHand", ["Hips"]],
+               "profiles": [["cmu", "cmu"], ["cmu", "mixamo"], ["nope", "cmu"]],
+               "format": ["usda", "usdc", "bvh", "glb", "usdz", "txt"],
+               "size": ["320x180"] * 6 + ["640x360"], "camera": ["side", "front", "top", "follow", "orbit"],
+               "style": ["body", "stick", "both"], "start": [0, 10, 60, 119, 120], "end": [1, 30, 120],
+               "speed": [0.05, 0.5, 1.0, 4], "traces": [["LeftFoot"], ["com"], ["nope"], ["LeftFoot", "com"]],
+               "align": ["dtw", "start"], "offset": [0.0, 0.5, -0.5, 100.0], "grid": [True, False]}
 NUMBERS = [0, 1, -1, 0.5, 1e309, -1e309, float("nan"), 1e18, -1e18, 2**63, 3, 120, 119, 121, 1e-300, 0.001, "1",
            None, True, [], {}]
 
@@ -82,6 +93,25 @@ class Requests:
                                                            for _ in range(self.rng.randint(0, 4))}}
                            for _ in range(self.rng.randint(1, 3))]
         return body
+
+    def job(self, keys: list[str]) -> tuple[str, dict]:
+        """A job POST: the endpoint and a body of its options, plausible values mostly and random
+        ones (:meth:`value`) now and then; the retarget save's ``key`` is one of ``keys`` (results
+        of finished retargets) where there are any."""
+        target = self.rng.choice(JOB_POSTS)
+        if target == "/api/retarget/save":
+            body = {"key": self.rng.choice(keys or ["nope"]), "format": self.rng.choice(JOB_OPTIONS["format"])}
+        else:
+            body = {"take": self.rng.choice(TAKES[:3]) if self.rng.random() < 0.95 else self.rng.choice(TAKES)}
+            other = "target" if target == "/api/retarget" else "compare"
+            if self.rng.random() < 0.8:
+                body[other] = self.rng.choice(TAKES[:2] if self.rng.random() < 0.9 else TAKES)
+            for name, values in JOB_OPTIONS.items():
+                if self.rng.random() < 0.3:
+                    body[name] = self.rng.choice(values) if self.rng.random() < 0.8 else self.value()
+        if target == "/api/video":
+            body.setdefault("size", "320x180")  # the page's default (1280x720) takes a minute per take here
+        return target, body
 
     def query(self) -> str:
         pairs = [(self.rng.choice(PARAMS), self.rng.choice([
@@ -121,6 +151,17 @@ def refusal_problem(status: int, payload: bytes) -> str | None:
     return None
 
 
+def job_problem(job: dict) -> str | None:
+    """Why a finished job (``GET /api/jobs/{id}``) is a defect (``None``: it is not)."""
+    if job.get("state") != "failed":
+        return None
+    error = job.get("error")
+    if not isinstance(error, str) or not error.startswith("usdmotion: error: ") or "\n" in error \
+            or "Traceback" in error or "internal error" in error:
+        return f"job failed with: {error!r:.300}"
+    return None
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--minutes", type=float, default=5.0)
@@ -144,8 +185,34 @@ def main() -> None:
     started = time.monotonic()
     with serving(create_app([library], {"units": "asf"}, folder / "out")) as base:
         host, port = base.split("//")[1].split(":")
-        while time.monotonic() < started + 60 * args.minutes:
-            method, target, data = requests.next()
+        running: dict[int, tuple[str, bytes]] = {}  # the one job in flight: id -> its request
+        finished_keys: list[str] = []
+        jobs: collections.Counter = collections.Counter()
+        ending, polled = started + 60 * args.minutes, 0.0
+        while time.monotonic() < ending or (running and time.monotonic() < ending + 120):
+            if running and time.monotonic() > polled + 0.25:  # poll the job in flight
+                polled = time.monotonic()
+                (job_id, (job_target, job_data)), = running.items()
+                status, payload = send(host, int(port), "GET", f"/api/jobs/{job_id}", None)
+                job = json.loads(payload) if status == 200 else {"state": "gone"}
+                if job.get("state") not in ("queued", "running"):
+                    del running[job_id]
+                    jobs[f"{job_target} {job.get('state')}"] += 1
+                    if job.get("state") == "done" and (job.get("result") or {}).get("key"):
+                        finished_keys.append(job["result"]["key"])
+                    problem = job_problem(job)
+                    if problem:
+                        defects.append({"request": f"POST {job_target}", "body": job_data[:500].decode(),
+                                        "found": problem})
+                        print(f"DEFECT POST {job_target} {job_data[:300].decode()}: {problem}", flush=True)
+            if time.monotonic() >= ending:
+                time.sleep(0.05)
+                continue
+            if not running and requests.rng.random() < 0.01:
+                target, body = requests.job(finished_keys)
+                method, data = "POST", json.dumps(body).encode()
+            else:
+                method, target, data = requests.next()
             try:
                 status, payload = send(host, int(port), method, target, data)
             except OSError as exc:
@@ -153,11 +220,16 @@ def main() -> None:
                                 "found": f"no answer: {exc}"})
                 break
             counts[target.split("?")[0]][status] += 1
+            if target in JOB_POSTS and status == 200:
+                running[json.loads(payload)["job"]] = (target, data)
             problem = refusal_problem(status, payload)
             if problem:
                 defects.append({"request": f"{method} {target[:200]}", "body": (data or b"")[:500].decode(),
                                 "found": problem})
                 print(f"DEFECT {method} {target[:120]}: {problem}", flush=True)
+        for job_id, (job_target, job_data) in running.items():
+            defects.append({"request": f"POST {job_target}", "body": job_data[:500].decode(),
+                            "found": f"job {job_id} had not ended two minutes after the campaign"})
     seconds = time.monotonic() - started
     statuses = sorted({s for c in counts.values() for s in c})
     rows = [[endpoint, *(counts[endpoint].get(s, 0) for s in statuses)] for endpoint in sorted(counts)]
@@ -165,7 +237,8 @@ def main() -> None:
     print_table(f"Studio request fuzz: {total} requests in {seconds:.0f} s (seed {args.seed}), "
                 f"{len(defects)} defects", ["endpoint", *map(str, statuses)], rows)
     path = write_results("studio_fuzz", {"seed": args.seed, "minutes": args.minutes, "requests": total,
-                                         "counts": {e: dict(c) for e, c in counts.items()}, "defects": defects[:100]})
+                                         "counts": {e: dict(c) for e, c in counts.items()}, "jobs": dict(jobs), "defects": defects[:100]})
+    print("jobs: " + (", ".join(f"{k}: {v}" for k, v in sorted(jobs.items())) or "none"))
     print(f"wrote {path.relative_to(ROOT)}")
 
 

@@ -12,7 +12,7 @@ from urllib.parse import urlsplit
 
 import pytest
 
-from studio_support import make_library, serving
+from studio_support import cli_error_line, make_library, serving
 from usdmotion.errors import InputError
 from usdmotion.io.atomic import atomic_output
 from usdmotion.studio.app import StudioError
@@ -227,6 +227,68 @@ def test_a_full_disk_fails_the_job_with_one_line_and_no_file(studio):
     assert final["state"] == "failed"
     assert final["error"] == f"usdmotion: error: {target}: cannot write: No space left on device"
     assert not target.exists() and not list(target.parent.glob(".walk.*"))
+
+
+def test_a_retarget_of_a_take_that_does_not_read_fails_with_the_clis_line(studio):
+    """The retarget job reads its takes on the job's thread: the reader's refusal (the
+    Studio's 422, which already is the CLI's line) once came back as ``internal error
+    (StudioError: ...)``, found by ``benchmarks/studio_fuzz.py``."""
+    base, lib = studio[0], studio[1]
+    status, answer = request(base, "POST", "/api/retarget", {"take": "0/broken.bvh", "target": "0/walk.bvh"})
+    assert status == 200
+    final = wait_state(base, answer["job"])
+    assert (final["state"], final["error"]) == ("failed", cli_error_line(lib, "broken.bvh"))
+    assert request(base, "GET", "/api/takes")[0] == 200
+
+
+@pytest.mark.parametrize("field", ["size", "camera", "style"])
+def test_a_video_option_the_page_cannot_send_is_a_400_with_one_line(studio, field):
+    """An object where the page sends a name once made a 500 (``unhashable type``), found by
+    ``benchmarks/studio_fuzz.py``."""
+    for value in ({}, [], None, 3, "huge"):
+        status, answer = request(studio[0], "POST", "/api/video", {"take": "0/walk.bvh", field: value})
+        assert status == 400 and answer["error"].startswith(f"{field} must be one of "), (value, answer)
+        assert "\n" not in answer["error"]
+
+
+def test_a_retarget_scale_the_cli_would_refuse_is_a_400_with_the_clis_line(studio):
+    """``scale`` reached the job unchecked: an object there failed the job with ``internal
+    error (TypeError: ...)``, found by ``benchmarks/studio_fuzz.py``. Now the request is
+    refused with the CLI's ``--scale`` message, before any job starts."""
+    from usdmotion.ops.retarget.files import parse_scale
+
+    for value in ({}, [1], None, True, 10**400, "nan", -1, 0, "tall"):
+        status, answer = request(studio[0], "POST", "/api/retarget",
+                                 {"take": "0/walk.bvh", "remove": ["LeftHand"], "scale": value})
+        with pytest.raises(Exception) as cli:
+            parse_scale(value)
+        assert (status, answer) == (400, {"error": str(cli.value).replace("--scale", "scale")}), value
+        assert answer["error"].startswith("scale must be ")
+    assert parse_scale("2") == parse_scale(2) == 2.0 and parse_scale(" Units ") == "units"
+
+
+def test_a_long_job_that_ends_after_many_short_ones_is_kept(tmp_path, monkeypatch):
+    """Finished jobs are forgotten oldest-ended first: a retarget that ran while the page saved
+    many edits is still there for the page that polls it (it was forgotten first, being the
+    oldest started, the moment it ended)."""
+    from usdmotion.studio import jobs as jobs_module
+
+    monkeypatch.setattr(jobs_module, "KEEP_FINISHED", 5)
+    jobs = Jobs(tmp_path)
+    release = threading.Event()
+    long_job = jobs.submit("long", [], lambda progress, outputs: {"waited": release.wait(30)})
+    short = [jobs.submit("short", [], lambda progress, outputs: {}) for _ in range(8)]
+    for job in short:
+        job.thread.join(10)
+    release.set()
+    long_job.thread.join(10)
+    later = jobs.submit("short", [], lambda progress, outputs: {})  # a submit forgets the oldest ended
+    later.thread.join(10)
+    jobs.submit("short", [], lambda progress, outputs: {}).thread.join(10)
+    assert jobs.get(long_job.id).result == {"waited": True}
+    kept = {job.id for job in jobs.list()}
+    # the 5 that ended last and the last submit; the 5 forgotten are shorts that ended before the long one
+    assert len(kept) == 6 and len({s.id for s in short} - kept) == 5 and later.id in kept
 
 
 def test_saved_takes_are_listed_and_an_edit_of_one_is_written_beside_it(tmp_path):

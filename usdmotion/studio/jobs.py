@@ -55,6 +55,7 @@ class Job:
     error: str | None = None
     result: dict | None = None
     created: float = field(default_factory=time.time)
+    ended: int = -1  # order in which jobs ended: the first forgotten are the first ended, not the first started
     cancelled: threading.Event = field(default_factory=threading.Event)
     existed: list[bool] = field(default_factory=list)
     thread: threading.Thread | None = None
@@ -86,6 +87,7 @@ class Jobs:
         self.out = None if out is None else Path(out)
         self._jobs: OrderedDict[int, Job] = OrderedDict()
         self._ids = itertools.count(1)
+        self._ends = itertools.count()
         self._lock = threading.Lock()
         self._slots = threading.Semaphore(max_running)
 
@@ -132,7 +134,7 @@ class Jobs:
         job.cancelled.set()
         with self._lock:
             if job.state == "queued":
-                job.state = "cancelled"
+                job.state, job.ended = "cancelled", next(self._ends)
         return job
 
     def output_path(self, source: str, suffix: str, ext: str) -> Path:
@@ -173,21 +175,24 @@ class Jobs:
                 if job.state != "queued":  # cancelled while waiting
                     return
                 job.state = "running"
+            state, result, error = "done", None, None
             try:
-                result = work(job.progress, list(job.outputs))
+                result = work(job.progress, list(job.outputs)) or {}
                 if job.cancelled.is_set():  # cancelled after its last report: keep nothing
                     raise JobCancelled
             except JobCancelled:
                 self._remove_outputs(job)
-                job.state = "cancelled"
+                state, result = "cancelled", None
             except BaseException as exc:  # noqa: BLE001 - every failure is the job's one line
                 self._remove_outputs(job)
-                line = error_line(exc)
+                error = error_line(exc)
+                if isinstance(exc, StudioError):  # the work's own refusal (a take that does not read): its line
+                    error = str(exc) if str(exc).startswith("usdmotion: error: ") else f"usdmotion: error: {exc}"
                 for full, name in sorted(names.items(), key=lambda kv: -len(kv[0])):
-                    line = line.replace(full, name)
-                job.error, job.state = line, "failed"
-            else:
-                job.result, job.state = result or {}, "done"
+                    error = error.replace(full, name)
+                state, result = "failed", None
+            with self._lock:
+                job.result, job.error, job.state, job.ended = result, error, state, next(self._ends)
 
     def _remove_outputs(self, job: Job) -> None:
         """Delete what the job wrote (outputs that did not exist when it was submitted)."""
@@ -197,8 +202,10 @@ class Jobs:
                     path.unlink()
 
     def _forget_old(self) -> None:
-        finished = [i for i, job in self._jobs.items() if not job.active]
-        for job_id in finished[:max(0, len(finished) - KEEP_FINISHED)]:
+        """Keep the :data:`KEEP_FINISHED` jobs that ended last: a long job that ends after many
+        short ones is kept for the page that polls it."""
+        finished = sorted((job.ended, i) for i, job in self._jobs.items() if not job.active)
+        for _, job_id in finished[:max(0, len(finished) - KEEP_FINISHED)]:
             del self._jobs[job_id]
 
 

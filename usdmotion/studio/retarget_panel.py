@@ -17,7 +17,7 @@ from starlette.requests import Request
 from starlette.responses import JSONResponse, Response
 from starlette.routing import Route
 
-from usdmotion.errors import error_line
+from usdmotion.errors import UsdMotionError, error_line
 from usdmotion.studio import takes
 from usdmotion.studio.errors import StudioError
 from usdmotion.studio.jobs import Kept, json_body, saved, submit_save
@@ -56,7 +56,13 @@ class RetargetPanel:
             if value not in allowed:
                 raise StudioError(400, f"{name} must be one of {', '.join(allowed)}, got {value!r}")
             options[name] = value
+        from usdmotion.ops.retarget.files import parse_scale
+
         scale = body.get("scale", "units")
+        try:
+            parse_scale(scale)
+        except UsdMotionError as exc:  # RetargetError: the CLI's line, named as the page names the field
+            raise StudioError(400, str(exc).replace("--scale", "scale")) from None
         options["scale"] = scale
         iterations = body.get("iterations")
         if iterations is not None and not (isinstance(iterations, int) and 0 <= iterations <= 100_000):

@@ -32,10 +32,10 @@ def render_options(body: dict, motion, other) -> tuple:
     from usdmotion.render import RenderOptions, check_options
 
     size = body.get("size", "1280x720")
-    if size not in SIZES:
+    if not isinstance(size, str) or size not in SIZES:
         raise StudioError(400, f"size must be one of {', '.join(SIZES)}")
     camera = body.get("camera", "side")
-    if camera not in CAMERAS:
+    if not isinstance(camera, str) or camera not in CAMERAS:
         raise StudioError(400, f"camera must be one of {', '.join(CAMERAS)}")
     style = body.get("style", "body")
     if style not in STYLES:

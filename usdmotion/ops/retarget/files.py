@@ -18,15 +18,14 @@ from usdmotion.progress import Progress
 
 def parse_scale(text) -> str | float:
     """``"units"``, ``"auto"`` or a positive number from ``--scale``."""
-    if isinstance(text, (int, float)):
-        value = float(text)
-    elif str(text).strip().lower() in ("units", "auto"):
-        return str(text).strip().lower()
-    else:
-        try:
-            value = float(text)
-        except ValueError:
-            raise RetargetError(f"--scale must be 'units', 'auto' or a positive number, got {text!r}") from None
+    if isinstance(text, str) and text.strip().lower() in ("units", "auto"):
+        return text.strip().lower()
+    try:  # a number, or its text; not a list, an object or a JSON integer past float's range
+        value = float(text) if isinstance(text, (str, int, float)) and not isinstance(text, bool) else None
+    except (ValueError, OverflowError):
+        value = None
+    if value is None:
+        raise RetargetError(f"--scale must be 'units', 'auto' or a positive number, got {text!r:.80}")
     if not (value > 0 and value < float("inf")):
         raise RetargetError(f"--scale must be a positive number, got {text!r}")
     return value
