@@ -188,6 +188,7 @@ def main() -> None:
         running: dict[int, tuple[str, bytes]] = {}  # the one job in flight: id -> its request
         finished_keys: list[str] = []
         jobs: collections.Counter = collections.Counter()
+        job_errors: collections.Counter = collections.Counter()  # the lines failed jobs ended with
         ending, polled = started + 60 * args.minutes, 0.0
         while time.monotonic() < ending or (running and time.monotonic() < ending + 120):
             if running and time.monotonic() > polled + 0.25:  # poll the job in flight
@@ -198,6 +199,8 @@ def main() -> None:
                 if job.get("state") not in ("queued", "running"):
                     del running[job_id]
                     jobs[f"{job_target} {job.get('state')}"] += 1
+                    if job.get("error"):
+                        job_errors[f"{job_target}: {job['error']}"] += 1
                     if job.get("state") == "done" and (job.get("result") or {}).get("key"):
                         finished_keys.append(job["result"]["key"])
                     problem = job_problem(job)
@@ -237,7 +240,8 @@ def main() -> None:
     print_table(f"Studio request fuzz: {total} requests in {seconds:.0f} s (seed {args.seed}), "
                 f"{len(defects)} defects", ["endpoint", *map(str, statuses)], rows)
     path = write_results("studio_fuzz", {"seed": args.seed, "minutes": args.minutes, "requests": total,
-                                         "counts": {e: dict(c) for e, c in counts.items()}, "jobs": dict(jobs), "defects": defects[:100]})
+                                         "counts": {e: dict(c) for e, c in counts.items()}, "jobs": dict(jobs),
+                                         "job_errors": dict(job_errors.most_common(50)), "defects": defects[:100]})
     print("jobs: " + (", ".join(f"{k}: {v}" for k, v in sorted(jobs.items())) or "none"))
     print(f"wrote {path.relative_to(ROOT)}")
 

@@ -260,7 +260,7 @@ RETARGET_OPTIONS = {
     "--remove": ["LThumb", "Hips", "Nope", "", "LThumb,LThumb"],
     "--add": ["Tip:Head:0,1,0", "Tip:Nope:0,1,0", "Tip:Head:nan,0,0", "Tip:Head:1e39,0,0", "::", "Tip:Head:0,1"],
     "--iterations": ["1", "0", "-1", "1e9"],
-    "--scale": ["units", "auto", "0", "-1", "nan", "inf", "x"],
+    "--scale": ["units", "auto", "0", "-1", "nan", "inf", "x", "1e30", "1e-30", "100", "0.9"],
     "--units": ["cm", "m", "0", "-1", "nan", "inf", "furlong", "1e-300"],
 }
 

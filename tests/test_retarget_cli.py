@@ -159,6 +159,10 @@ def write_map(tmp_path, doc, name="map.json"):
     (["--remove", "LThumb", "--scale", "-2"], "--scale must be a positive number"),
     (["--remove", "LThumb", "--scale", "big"], "--scale must be 'units', 'auto' or a positive number"),
     (["--target", "DAZ", "--units", "cm"], "units look mismatched"),  # a CMU take said to be cm
+    # a factor that leaves the source far out of the target's reach (exit 0, RMS 1e29 and numpy's
+    # overflow warnings, before): the same 2x bound as the units' check, around --scale auto's factor
+    (["--target", "DAZ", "--units", "asf", "--scale", "1e30"], "--scale 1e+30 makes the source 1"),
+    (["--target", "DAZ", "--units", "asf", "--scale", "0.5"], "--scale 0.5 makes the source 0."),
     (["--target", "DAZ", "--units", "asf", "--directions", "mean"], "--directions mean needs a target derived"),
     (["--target", "DAZ", "--units", "asf", "--map", "MAP:{\"joints\": {\"hip\": null}}"], "could be matched"),
     (["--target", "CYCLE"], "cyc.usda"),

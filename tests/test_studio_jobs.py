@@ -12,7 +12,7 @@ from urllib.parse import urlsplit
 
 import pytest
 
-from studio_support import cli_error_line, make_library, serving
+from studio_support import WALK, cli_error_line, make_library, serving
 from usdmotion.errors import InputError
 from usdmotion.io.atomic import atomic_output
 from usdmotion.studio.app import StudioError
@@ -251,6 +251,19 @@ def test_a_video_option_the_page_cannot_send_is_a_400_with_one_line(studio, fiel
         assert "\n" not in answer["error"]
 
 
+def test_a_ghost_offset_past_the_take_is_a_400_before_any_job(studio):
+    """An offset past the take's end once started a job that failed with the renderer's
+    ``--align frame:N,0`` line, which names an option the page does not have."""
+    from usdmotion.io import read_motion
+
+    base = studio[0]
+    walk = read_motion(WALK, units="asf")
+    seconds = walk.n_frames / walk.fps
+    status, answer = request(base, "POST", "/api/video", {"take": "0/walk.bvh", "compare": "0/session2/walk_turned.usda",
+                                                          "offset": seconds + 1, "size": "320x180"})
+    assert (status, answer) == (400, {"error": f"offset must be under the take's {seconds:.3g} s, got {seconds + 1!r}"})
+
+
 def test_a_retarget_scale_the_cli_would_refuse_is_a_400_with_the_clis_line(studio):
     """``scale`` reached the job unchecked: an object there failed the job with ``internal
     error (TypeError: ...)``, found by ``benchmarks/studio_fuzz.py``. Now the request is
@@ -265,6 +278,15 @@ def test_a_retarget_scale_the_cli_would_refuse_is_a_400_with_the_clis_line(studi
         assert (status, answer) == (400, {"error": str(cli.value).replace("--scale", "scale")}), value
         assert answer["error"].startswith("scale must be ")
     assert parse_scale("2") == parse_scale(2) == 2.0 and parse_scale(" Units ") == "units"
+
+
+def test_an_unknown_rig_profile_is_a_400_naming_the_known_ones(studio):
+    from usdmotion.skeleton_names import rig_profiles
+
+    status, answer = request(studio[0], "POST", "/api/retarget",
+                             {"take": "0/walk.bvh", "target": "0/walk.bvh", "profiles": ["cmu_cgspeed", "cmu"]})
+    assert status == 400 and answer["error"].startswith("profiles: unknown rig profile 'cmu' (known: ")
+    assert answer["error"].endswith(f"{', '.join(sorted(rig_profiles()))})")
 
 
 def test_a_long_job_that_ends_after_many_short_ones_is_kept(tmp_path, monkeypatch):

@@ -73,6 +73,12 @@ class RetargetPanel:
         if profiles:
             if not (isinstance(profiles, list) and len(profiles) == 2 and all(isinstance(p, str) for p in profiles)):
                 raise StudioError(400, "profiles must be [source profile, target profile]")
+            from usdmotion.skeleton_names import rig_profiles
+
+            unknown = [p for p in profiles if p not in rig_profiles()]
+            if unknown:
+                raise StudioError(400, f"profiles: unknown rig profile {unknown[0]!r:.80} "
+                                       f"(known: {', '.join(sorted(rig_profiles()))})")
             options["map"] = {"source_profile": profiles[0], "target_profile": profiles[1], "auto": True}
         if target is None and not remove:
             raise StudioError(400, "choose a target take, or joints to remove")

@@ -13,6 +13,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from starlette.concurrency import run_in_threadpool
 from starlette.requests import Request
 from starlette.responses import FileResponse, JSONResponse, Response
 from starlette.routing import Route
@@ -57,6 +58,8 @@ def render_options(body: dict, motion, other) -> tuple:
         offset = body.get("offset", 0)
         if not isinstance(offset, (int, float)) or not abs(offset) < 1e6:
             raise StudioError(400, f"offset must be a number of seconds, got {offset!r}")
+        if round(offset * motion.fps) >= motion.n_frames:  # the ghost would start after the take ends
+            raise StudioError(400, f"offset must be under the take's {motion.n_frames / motion.fps:.3g} s, got {offset!r}")
         align = (f"frame:{round(offset * motion.fps)},0" if offset >= 0 else
                  f"frame:0,{min(round(-offset * other.fps), other.n_frames - 1)}")
     width, height = SIZES[size]
@@ -86,10 +89,14 @@ class VideoPanel:
         body = await json_body(request)
         entry = self.api.library.get(body.get("take", ""))
         other_entry = self.api.library.get(body["compare"]) if body.get("compare") else None
-        motion = self.api.compute(entry, "motion", None)
-        other = None if other_entry is None else self.api.compute(other_entry, "motion", None)
-        options = render_options({**body, "label": entry.name, "label2": other_entry.name if other_entry else ""},
-                                 motion, other)
+
+        def read() -> tuple:  # off the event loop: a long take's first read takes seconds
+            motion = self.api.compute(entry, "motion", None)
+            other = None if other_entry is None else self.api.compute(other_entry, "motion", None)
+            return motion, other, render_options(
+                {**body, "label": entry.name, "label2": other_entry.name if other_entry else ""}, motion, other)
+
+        motion, other, options = await run_in_threadpool(read)
         jobs = self.api.jobs
         path = jobs.output_path(library_name(self.api.library, self.api.out, entry), "video", "mp4")
 

@@ -167,6 +167,11 @@ def prepare(source: Motion, target: Motion | None = None, *, remove=(), add=(), 
         s = float(scale)
         if not (np.isfinite(s) and s > 0):
             raise RetargetError(f"--scale must be 'units', 'auto' or a positive number, got {scale!r}")
+        lo, hi = SIZE_RATIO_RANGE  # a factor that leaves the source out of the target's reach solves nothing
+        if not lo <= units * ratio / s <= hi:
+            raise RetargetError(
+                f"{rig.path}: --scale {s:g} makes the source {s / (units * ratio):.3g}x the size of this target skeleton; "
+                f"a factor within {hi:g}x of --scale auto's ({units * ratio:.3g}) keeps it within reach")
     positions = positions * s
     src_len = src_len * s
     targets = np.zeros((source.n_frames, rig.n_joints, 3))
