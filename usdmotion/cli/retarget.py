@@ -72,7 +72,7 @@ def retarget(
                                                         "the new parent's frame (auto) or 'rest' pose (the paper).")]
     = Directions.auto,
     scale: Annotated[str, typer.Option(help="Source size: 'units' (physical size; checks the units agree), 'auto' "
-                                            "(fit to the target's size) or a factor.")] = "units",
+                                            "(fit to the target's size) or a factor (within 2x of auto's).")] = "units",
     init: Annotated[Init, typer.Option(help="Initial rotations: copied/composed from the source, or aimed at it.")]
     = Init.auto,
     local: Annotated[bool, typer.Option(help="Optimise only joints around changed bones (derived rigs).")] = False,
