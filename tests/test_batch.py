@@ -29,6 +29,8 @@ from usdmotion.io import read_motion, write_motion
 
 SHARED_TAKES = ("cmu/cgspeed_12_01_walk.bvh", "cmu/max_jumping_jacks_30fps.bvh", "edge_cases/bvhanim_test_simple.bvh",
                 "edge_cases/pybvh_bvh_example_mixed_orders_zup.bvh", "bandai1/dataset-1_kick_normal_001.bvh")
+#: The bundled walk (no ../shared needed).
+WALK = Path(__file__).resolve().parents[1] / "usdmotion" / "data" / "cmu_12_01_walk.bvh"
 MALFORMED = {"broken/truncated.bvh": "HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0 0\n",
              "broken/bad_number.bvh": "HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0 0\n  CHANNELS 3 Xrotation Yrotation "
                                       "Zrotation\n  End Site\n  {\n    OFFSET 0 1 0\n  }\n}\nMOTION\nFrames: 2\n"
@@ -178,6 +180,55 @@ def test_bad_arguments_exit_2(tmp_path, capsys):
     assert "source folder does not exist" in capsys.readouterr().err
     assert main(["batch", "convert", str(tmp_path), str(tmp_path / "out"), "--to", "fbx"]) == 2
     assert main(["batch", "convert", str(tmp_path), str(tmp_path / "out"), "--to", "bvh", "--mesh"]) == 2
+    assert not (tmp_path / "out").exists()
+
+
+def _one_error_line(err: str) -> str:
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert len(lines) == 1 and lines[0].startswith("usdmotion: error: ") and "Traceback" not in err, err
+    return lines[0]
+
+
+def test_an_output_folder_that_is_or_holds_the_source_folder_is_refused(tmp_path, capsys):
+    """OUT == SRC once ran 0 takes with exit 0 (every take was skipped as output); OUT above SRC
+    ran 0 takes too, or with --to bvh would have put one take's output on another take."""
+    src = tmp_path / "lib" / "session"
+    (src / "sub").mkdir(parents=True)
+    shutil.copy(WALK, src / "a.bvh")
+    shutil.copy(WALK, src / "sub" / "a.bvh")
+    before = sorted(p for p in tmp_path.rglob("*"))
+    for out, word in ((src, "is"), (tmp_path / "lib", "contains"), (tmp_path, "contains")):
+        assert main(["batch", "convert", str(src), str(out), "--to", "bvh"]) == 2
+        line = _one_error_line(capsys.readouterr().err)
+        assert line == (f"usdmotion: error: {out}: the output folder {word} the source folder: choose one outside "
+                        "the source tree (or inside it: it is then skipped)")
+    assert sorted(p for p in tmp_path.rglob("*")) == before
+
+
+@pytest.mark.parametrize("address", ["garbage", "tcp://", "http://127.0.0.1:8786", "tls://127.0.0.1:1"])
+def test_a_scheduler_address_dask_refuses_is_one_line(tmp_path, capsys, address):
+    """Dask's own refusals came out without the address (``missing port number in address
+    'garbage'``) or, for tls://, as an internal error (a TypeError)."""
+    shutil.copy(WALK, tmp_path / "a.bvh")
+    assert main(["batch", "convert", str(tmp_path), str(tmp_path / "out"), "--scheduler", address]) == 2
+    line = _one_error_line(capsys.readouterr().err)
+    assert line.startswith(f"usdmotion: error: {address}: not a Dask scheduler address like tcp://HOST:8786 (Dask: ")
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_render_size_out_of_range_is_refused_before_any_take(tmp_path, capsys):
+    """It was a failed row per take (exit 1) after the cluster had started."""
+    shutil.copy(WALK, tmp_path / "a.bvh")
+    assert main(["batch", "render", str(tmp_path), str(tmp_path / "out"), "--size", "8x8"]) == 2
+    assert _one_error_line(capsys.readouterr().err) == "usdmotion: error: image size 8x8 is outside 16..8192"
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_library_without_takes_says_so(tmp_path, capsys):
+    shutil.copy(WALK, tmp_path / "a.bvh")
+    assert main(["batch", "convert", str(tmp_path), str(tmp_path / "out"), "--include", "**/*.glb"]) == 0
+    err = capsys.readouterr().err
+    assert f"usdmotion: warning: {tmp_path}: no takes found (include: **/*.glb): nothing to do" in err
     assert not (tmp_path / "out").exists()
 
 

@@ -88,6 +88,9 @@ def _client(workers: int | None, scheduler: str | None, memory_limit: str | int)
             client = Client(scheduler, timeout="10s")
         except (OSError, TimeoutError) as exc:
             raise InputError(scheduler, f"cannot connect to the Dask scheduler ({exc})") from None
+        except Exception as exc:  # noqa: BLE001 - distributed's refusals of the address: ValueError, TypeError (tls)
+            message = str(exc).splitlines()[0] if str(exc).strip() else type(exc).__name__
+            raise InputError(scheduler, f"not a Dask scheduler address like tcp://HOST:8786 (Dask: {message})") from None
         with client:
             yield client
         return

@@ -159,8 +159,16 @@ def plan_jobs(operation: str, src_dir: Path, out_dir: Path, read_options: dict, 
     read_options = {**DEFAULT_READ_OPTIONS, **read_options}
     params = {**DEFAULT_PARAMS[operation], **params}
     src_dir, out_dir = Path(src_dir).absolute(), Path(out_dir).absolute()
+    if src_dir.is_dir() and src_dir.resolve().is_relative_to(out_dir.resolve()):
+        # outputs mirror the source tree: in the source folder or above it they would land among the
+        # takes (a BVH on its source, other outputs read as takes by the next run)
+        where = "is" if src_dir.resolve() == out_dir.resolve() else "contains"
+        raise InputError(out_dir, f"the output folder {where} the source folder: choose one outside the source tree "
+                                  "(or inside it: it is then skipped)")
+    # the output folder inside the source one is skipped
+    inside = src_dir.is_dir() and out_dir.resolve().is_relative_to(src_dir.resolve())
     jobs = []
-    for path in find_sources(src_dir, include, out_dir):
+    for path in find_sources(src_dir, include, out_dir if inside else None):
         rel = path.relative_to(src_dir).as_posix()
         jobs.append(Job(operation, take_id(rel), str(path), rel, outputs_for(operation, out_dir, rel, params),
                         read_options, params))

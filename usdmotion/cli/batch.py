@@ -55,6 +55,13 @@ def _run(operation: str, src_dir: Path, out_dir: Path, read_options: dict, param
     with progress(f"batch {operation}", unit="takes", refresh_per_second=2) as update:
         result = run_batch(operation, src_dir, out_dir, read_options, params,
                            tuple(include) if include else DEFAULT_INCLUDE, force, workers, scheduler, progress=update)
+    if result.total == 0:
+        import warnings
+
+        from usdmotion.errors import UsdMotionWarning
+
+        globs = ", ".join(include) if include else "the motion files' extensions"
+        warnings.warn(UsdMotionWarning(f"{src_dir}: no takes found (include: {globs}): nothing to do"), stacklevel=1)
     for row in result.failed:
         where = "" if row["error"].startswith(row["source"]) else f"{row['source']}: "
         typer.echo(f"usdmotion: error: {where}{row['error']}", err=True)
@@ -121,6 +128,9 @@ def render(src_dir: SrcDir, out_dir: OutDir,
            read: ReadOptions = ReadOptions()) -> None:
     """A preview MP4 of every take (like 'usdmotion render --size')."""
     from usdmotion.cli.render import _size
+    from usdmotion.render import RenderOptions, check_options
 
-    _run("render", src_dir, out_dir, _read_options(read), {"size": list(_size(size))},
+    width, height = _size(size)
+    check_options(RenderOptions(width=width, height=height))  # refused once, not as a failed row per take
+    _run("render", src_dir, out_dir, _read_options(read), {"size": [width, height]},
          include, force, workers, scheduler)
