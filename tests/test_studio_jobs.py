@@ -264,6 +264,23 @@ def test_a_ghost_offset_past_the_take_is_a_400_before_any_job(studio):
     assert (status, answer) == (400, {"error": f"offset must be under the take's {seconds:.3g} s, got {seconds + 1!r}"})
 
 
+@pytest.mark.parametrize("view, error", [
+    ({"traces": ["LeftFoot", "nope"]}, "traces: no joint named 'nope'"),
+    ({"start": 120, "end": 30}, "no frames to render (the motion has {n} frames, range 120:30)"),
+    ({"start": "{n}"}, "no frames to render (the motion has {n} frames, range {n}:{n})"),
+])
+def test_a_video_view_that_cannot_render_is_a_400_before_any_job(studio, view, error):
+    """These started a job that failed a moment later (``benchmarks/studio_fuzz.py``)."""
+    from usdmotion.io import read_motion
+
+    n = read_motion(WALK, units="asf").n_frames
+    view = {k: n if v == "{n}" else v for k, v in view.items()}
+    _, listing = request(studio[0], "GET", "/api/jobs")
+    status, answer = request(studio[0], "POST", "/api/video", {"take": "0/walk.bvh", "size": "320x180", **view})
+    assert (status, answer) == (400, {"error": error.format(n=n)})
+    assert request(studio[0], "GET", "/api/jobs")[1] == listing  # no job started
+
+
 def test_a_retarget_scale_the_cli_would_refuse_is_a_400_with_the_clis_line(studio):
     """``scale`` reached the job unchecked: an object there failed the job with ``internal
     error (TypeError: ...)``, found by ``benchmarks/studio_fuzz.py``. Now the request is

@@ -66,10 +66,15 @@ def render_options(body: dict, motion, other) -> tuple:
     options = RenderOptions(width=width, height=height, start=start, end=end, speed=float(speed),
                             camera=CAMERAS[camera], style=style, grid=bool(body.get("grid", True)),
                             traces=tuple(traces), align=align, labels=(body.get("label", ""), body.get("label2", "")))
+    from usdmotion.render import output_frames
+    from usdmotion.render.traces import check_traces
+
     try:
         check_options(options)
+        check_traces(motion, traces)  # the page's names: refused at once, not as a job that fails
+        output_frames(motion, options)  # a start at or after the end
     except Exception as exc:  # noqa: BLE001
-        raise StudioError(400, str(exc).splitlines()[0]) from None
+        raise StudioError(400, str(exc).splitlines()[0].replace("--trace: ", "traces: ")) from None
     return options
 
 
