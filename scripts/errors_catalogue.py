@@ -28,6 +28,8 @@ ADVICE = [
      "command (USDMOTION_DEBUG=1 shows a traceback)."),
     (r"levels deep|joints; at most|more than … joints",
      "The skeleton exceeds the supported size (1,000 levels, 10,000 joints); check that the file really is a rig."),
+    (r"no reader accepts",
+     "The edit moved a value past ±1e15 (e.g. a huge --translate or --move); give the edit smaller values."),
     (r"float32", "A translation is too large for USD's float32 samples; fix the input (values must stay within ±1e15)."),
     (r"not a finite|non-finite|NaN|beyond ±|within ±",
      "A number is NaN, infinite or absurd (beyond ±1e15); fix the value at the line or path shown."),

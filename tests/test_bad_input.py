@@ -152,8 +152,13 @@ def test_2_root_positions_beyond_float32_are_refused_with_their_line(tmp_path, c
 def test_2_the_usd_writer_refuses_values_float32_cannot_hold(walk, tmp_path):
     import dataclasses
 
+    from usdmotion.io.usd import write_usd
+
     huge = dataclasses.replace(walk.sliced(0, 3), root_translation=np.full((3, 3), 1e39))
     with pytest.raises(OutputError, match="float32"):
+        write_usd(huge, tmp_path / "huge.usdc")
+    # write_motion refuses it before, as beyond what any reader accepts (±1e15)
+    with pytest.raises(OutputError, match=r"huge.usdc: not written: the result's root translation at frame 0: 1e\+39 "):
         write_motion(huge, tmp_path / "huge.usdc")
     assert list(tmp_path.iterdir()) == []
     big = dataclasses.replace(walk.sliced(0, 3), root_translation=np.full((3, 3), MAX_ABS_VALUE))

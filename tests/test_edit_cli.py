@@ -124,6 +124,11 @@ def test_subcommands(tmp_path, walk_file, capsys):
     (["blend", "{in}", "{in}", "{out}", "--transition", "500"], "does not fit"),
     (["displace", "{in}", "{out}", "--rotate", "Head=1,2,3"], "expected JOINT@FRAME=A,B,C"),
     (["reorient", "{in}", "{out}", "--position", "1"], "needs 2 or 3 numbers"),
+    # results too long to hold: numpy's "Unable to allocate 3.81 TiB ..." was the line (no FILE)
+    (["speed", "{in}", "{out}", "--factor", "1e-9"], "speed 1e-09: the result would have 149,000,000,001 frames"),
+    (["speed", "{in}", "{out}", "--key", "0=1e-9", "--key", "40=1e-9"], "the speed keys: the result would have"),
+    (["resample", "{in}", "{out}", "--fps", "1e9"], "resampling to 1e+09 fps: the result would have"),
+    (["cycle", "{in}", "{out}", "--loops", "100000000"], "100000000 loops of"),
 ])
 def test_bad_options_are_one_line_errors_and_write_nothing(tmp_path, walk_file, capsys, argv, message):
     out_file = tmp_path / "o.bvh"
@@ -133,3 +138,17 @@ def test_bad_options_are_one_line_errors_and_write_nothing(tmp_path, walk_file, 
     lines = err.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith(f"usdmotion: error: {walk_file}") and message in lines[0], err
     assert not out_file.exists() and "Traceback" not in err
+
+
+@pytest.mark.parametrize("ext", ["bvh", "usda", "glb"])
+def test_a_result_no_reader_accepts_is_not_written(tmp_path, walk_file, capsys, ext):
+    """``reorient --translate 1e16,0,0`` wrote a file (exit 0) that every reader, usdmotion's
+    own included, refuses: values beyond ±1e15 (the readers' bound)."""
+    out_file = tmp_path / f"o.{ext}"
+    code, out, err = run(capsys, "reorient", walk_file, out_file, "--translate", "1e16,0,0")
+    assert code == 2 and not out_file.exists() and not list(tmp_path.glob(".o*")), err
+    assert err.strip() == (f"usdmotion: error: {out_file}: not written: the result's root translation at frame 0: "
+                           f"{float(read_motion(walk_file).root_translation[0, 0] + 1e16)!r} is not a finite number within "
+                           "±1e+15, which no reader accepts")
+    code, out, err = run(capsys, "reorient", walk_file, out_file, "--translate", "1e14,0,0")  # within the bound
+    assert code == 0 and read_motion(out_file).root_translation[0, 0] > 9e13

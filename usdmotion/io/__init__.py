@@ -108,8 +108,18 @@ def check_magnitudes(motion: Motion, path: str | os.PathLike | None) -> None:
             continue
         bad = np.argwhere(~(np.abs(a) <= MAX_ABS_VALUE))[0]
         where = "" if name == "joint offsets" else f" at frame {int(bad[0])}"
-        raise InputError(path, f"{name}{where}: {a[tuple(bad)]!r} is not a finite number within "
+        raise InputError(path, f"{name}{where}: {float(a[tuple(bad)])!r} is not a finite number within "
                                f"±{MAX_ABS_VALUE:g}")
+
+
+def _check_writable_values(motion: Motion, path: Path) -> None:
+    """Refuse to write what no reader accepts (:func:`check_magnitudes`, usdmotion's readers
+    included): an edit can move a take past ±1e15 (``reorient --translate 1e16,0,0`` wrote a
+    BVH that ``usdmotion info`` then refused, with exit 0)."""
+    try:
+        check_magnitudes(motion, None)
+    except InputError as exc:
+        raise OutputError(f"{path}: not written: the result's {exc.message}, which no reader accepts") from None
 
 
 def _read(path: Path, root_offset: str, units, up_axis, lenient: bool, ignore_joint_positions: bool,
@@ -167,6 +177,7 @@ def write_motion(motion: Motion | list[Motion], path: str | os.PathLike, **optio
     take's arrays before filling its layer, see :func:`usdmotion.io.usd.write_usd`)."""
     path = Path(path)
     kind = _kind(path)  # only the writer of that format is imported (see _read)
+    _check_writable_values(motion[0] if isinstance(motion, list) else motion, path)
     if kind != "usd" and isinstance(motion, list):
         motion = motion.pop()
     if kind == "bvh":

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 
 import numpy as np
 
@@ -13,6 +14,25 @@ from usdmotion.motion import POSITION_CHANNELS, ROTATION_CHANNELS, Motion
 
 class EditError(UsdMotionError, ValueError):
     """An editing operation got options it cannot honour (unknown joint, bad range...)."""
+
+
+def check_result_frames(count: int, n_joints: int, what: str) -> None:
+    """Refuse an edit whose result would have ``count`` frames that cannot be held: more than
+    :data:`usdmotion.constants.MAX_FRAMES`, or ``(count, n_joints, 4)`` float64 rotations
+    above half of this machine's memory (the result's other arrays and the writer need the
+    rest). Checked before anything of that size is allocated (numpy's ``Unable to allocate
+    3.81 TiB`` for ``speed --factor 1e-9`` was the error line before)."""
+    from usdmotion.constants import MAX_FRAMES
+
+    need = float(count) * max(int(n_joints), 1) * 4 * 8
+    try:
+        memory = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):  # not POSIX: the frame cap alone
+        memory = float("inf")
+    if count > MAX_FRAMES or need > memory / 2:
+        raise EditError(f"{what}: the result would have {count:,} frames ({need / 2**30:,.1f} GiB of rotations); at most "
+                        f"{MAX_FRAMES:,} frames whose rotations fit in half of this machine's "
+                        f"{memory / 2**30:,.0f} GiB are supported")
 
 
 def joint_index(motion: Motion, name: str) -> int:

@@ -24,7 +24,7 @@ from usdmotion import quat_planes as Q
 from usdmotion.kinematics import joint_positions
 from usdmotion.motion import Motion
 from usdmotion.ops.edit import trajectory as T
-from usdmotion.ops.edit._common import EditError, frame_range, smoothstep
+from usdmotion.ops.edit._common import EditError, check_result_frames, frame_range, smoothstep
 from usdmotion.ops.edit.timewarp import trim
 
 OFFSETS = ("rigid", "translation", "none")
@@ -58,6 +58,7 @@ def cycle(motion: Motion, start: int | None = None, stop: int | str | None = Non
     if n < 1 or 2 * n + 1 > length:
         raise EditError(f"cycle transition must be 1..{(length - 1) // 2} frames for a {length}-frame range, got {n}")
     period = length - n
+    check_result_frames(int(loops) * period, motion.n_joints, f"{loops} loops of {period} frames")
     # one frame past the range, where there is one, gives the path step out of its last frame
     segment = trim(motion, lo, min(hi + 1, motion.n_frames))
     carried, undo = T.to_root_carried(segment)

@@ -15,7 +15,8 @@ import numpy as np
 
 from usdmotion import quat_planes as Q
 from usdmotion.motion import Motion
-from usdmotion.ops.edit._common import EditError, animated_translation_joints, frame_range, rebuild, select_joints
+from usdmotion.ops.edit._common import (EditError, animated_translation_joints, check_result_frames, frame_range, rebuild,
+                                        select_joints)
 
 INTERPOLATIONS = ("cubic", "linear")
 
@@ -96,7 +97,7 @@ def sample_motion(motion: Motion, tau: np.ndarray, interp: str = "cubic",
     return rotations, root, jt
 
 
-def speed_times(n_frames: int, factor: float | None = None, keys=None) -> np.ndarray:
+def speed_times(n_frames: int, factor: float | None = None, keys=None, n_joints: int = 1) -> np.ndarray:
     """Source frames ``τ_k`` of the output frames for a speed curve ``s(τ)``.
 
     The next output frame is ``s`` source frames after the previous one
@@ -110,10 +111,11 @@ def speed_times(n_frames: int, factor: float | None = None, keys=None) -> np.nda
     if factor is not None:
         s = _positive(factor, "speed")
         count = int(math.floor(last / s + 1e-9)) + 1
+        check_result_frames(count, n_joints, f"speed {s:g}")
         return np.minimum(np.arange(count) * s, last)
     frames, speeds = _speed_keys(keys, n_frames)
     if len(frames) == 1:
-        return speed_times(n_frames, factor=speeds[0])
+        return speed_times(n_frames, factor=speeds[0], n_joints=n_joints)
     from scipy.integrate import cumulative_trapezoid
     from scipy.interpolate import PchipInterpolator
 
@@ -122,6 +124,7 @@ def speed_times(n_frames: int, factor: float | None = None, keys=None) -> np.nda
     s = curve(np.clip(grid, frames[0], frames[-1]))
     elapsed = cumulative_trapezoid(1.0 / s, grid, initial=0.0)  # output frames k(τ)
     count = int(math.floor(elapsed[-1] + 1e-9)) + 1
+    check_result_frames(count, n_joints, "the speed keys")
     return np.interp(np.arange(count, dtype=np.float64), elapsed, grid)
 
 
@@ -161,7 +164,7 @@ def speed(motion: Motion, factor: float | None = None, keys=None, joint: str | N
     last pose once their time runs out.
     """
     _check_interp(interp)
-    tau = speed_times(motion.n_frames, factor, keys)
+    tau = speed_times(motion.n_frames, factor, keys, motion.n_joints)
     if joint is None:
         rotations, root, jt = sample_motion(motion, tau, interp)
         return rebuild(motion, rotations, root, jt, frame_times=tau)
@@ -183,6 +186,7 @@ def resample(motion: Motion, fps: float, interp: str = "cubic") -> Motion:
     _check_interp(interp)
     fps = _positive(fps, "fps")
     count = int(math.floor(motion.duration * fps + 1e-6)) + 1
+    check_result_frames(count, motion.n_joints, f"resampling to {fps:g} fps")
     tau = np.minimum(np.arange(count) * (motion.fps / fps), motion.n_frames - 1)
     rotations, root, jt = sample_motion(motion, tau, interp)
     return rebuild(motion, rotations, root, jt, fps=fps, frame_times=tau)
