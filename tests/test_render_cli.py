@@ -38,6 +38,8 @@ def test_render_cli_writes_a_video_and_reports_the_rate(shared_file, tmp_path, c
     (["--angle", "knee_middle"], "--angle 'knee_middle': unknown angle"),
     (["--angle", "Hips,LeftUpLeg,Nope"], "no joint named 'Nope'"),
     (["--angle", "Hips,LeftUpLeg"], "three joint names"),
+    # numpy's "Unable to allocate 1.90 TiB" was the line, without the option
+    (["--speed", "1e-9"], "the video would have"),
 ])
 def test_bad_options_fail_in_one_line_without_output(shared_file, tmp_path, capsys, extra, message):
     code = main(["render", str(shared_file(WALK)), str(tmp_path / "out.mp4"), *FAST, *extra])

@@ -100,6 +100,11 @@ def default_fps(motion_fps: float) -> float:
     return motion_fps / math.ceil(motion_fps / 60.0 - 1e-9)
 
 
+#: Most frames a video may have (9 hours at 60 fps): a slow-motion factor that asks for more
+#: is a typo, not a video.
+MAX_VIDEO_FRAMES = 2_000_000
+
+
 def output_frames(motion: Motion, options: RenderOptions) -> tuple[np.ndarray, np.ndarray, float]:
     """``(source_frames (N,), times (N,) s, fps)`` of the output, per options."""
     start = 0 if options.start is None else int(options.start)
@@ -113,7 +118,10 @@ def output_frames(motion: Motion, options: RenderOptions) -> tuple[np.ndarray, n
     if not (fps > 0 and math.isfinite(fps)):
         raise UsdMotionError(f"--fps must be a positive number, got {options.fps}")
     span = (end - 1 - start) / motion.fps
-    count = int(math.floor(span * fps / options.speed + 1e-6)) + 1
+    count = math.floor(span * fps / options.speed + 1e-6) + 1
+    if count > MAX_VIDEO_FRAMES:  # checked before the frame arrays are allocated
+        raise UsdMotionError(f"the video would have {count:,} frames ({span:.3g} s of motion at --speed "
+                             f"{options.speed:g}, {fps:g} fps); at most {MAX_VIDEO_FRAMES:,} (9 hours at 60 fps)")
     times = start / motion.fps + np.arange(count) * options.speed / fps
     frames = np.clip(np.rint(times * motion.fps).astype(np.int64), start, end - 1)
     return frames, times, fps
