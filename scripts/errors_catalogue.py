@@ -33,6 +33,7 @@ ADVICE = [
     (r"float32", "A translation is too large for USD's float32 samples; fix the input (values must stay within ±1e15)."),
     (r"not a finite|non-finite|NaN|beyond ±|within ±",
      "A number is NaN, infinite or absurd (beyond ±1e15); fix the value at the line or path shown."),
+    (r"--cutoff", "Give a low-pass cutoff in Hz within the range stated (see `usdmotion COMMAND --help`)."),
     (r"Frame Time|frame rate|^fps|fps must",
      "Give the frame time in seconds (0.008333 for 120 fps); rates from one frame an hour to 1 MHz are accepted."),
     (r"Frames:|--lenient", "Make 'Frames:' match the motion rows, or pass --lenient to keep the complete rows."),

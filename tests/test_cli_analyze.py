@@ -86,11 +86,14 @@ def test_rest_pose_frame_warning(shared_file, capsys):
 
 @pytest.mark.parametrize("args, message", [
     (["--joints", "Bodyy"], r"giant_swing: no joint named 'Bodyy' \(did you mean Body\?\)"),
-    (["--cutoff", "20"], r"--cutoff 20 Hz must be above 0 and below the Nyquist frequency 15 Hz"),
+    (["--cutoff", "20"], r"--cutoff 20 Hz must be at least 0.1 Hz and below the Nyquist frequency 15 Hz"),
+    # numpy's "Unable to allocate 2.62 TiB" was the line (the filter's end padding grows as fps / cutoff)
+    (["--cutoff", "1e-9"], r"--cutoff 1e-09 Hz must be at least 0.1 Hz"),
     (["--frames", "5"], r"--frames: '5' is not START:STOP"),
     (["--frames", "22:"], r"--frames 22: leaves 1 of 23 frames"),
     (["--euler-order", "XYX"], r"Euler order must be one of"),
-    (["--mass", "-3"], r"--mass must be a positive number"),
+    (["--mass", "-3"], r"--mass must be a body mass between 1 and 1000 kg, got -3"),
+    (["--mass", "1e30"], r"--mass must be a body mass between 1 and 1000 kg, got 1e\+30"),  # exit 0 before
     (["--out", "{tmp}/k.txt"], r"k\.txt: unknown table format '\.txt'"),
     (["--plot", "{tmp}/k.gif"], r"k\.gif: unknown image format '\.gif'"),
 ])

@@ -36,7 +36,7 @@ Filter = Annotated[FilterChoice, typer.Option(
                      "derivative of the raw samples).", case_sensitive=False)]
 Cutoff = Annotated[float, typer.Option(
     "--cutoff", help="Low-pass cutoff in Hz (-3 dB of the whole zero-lag filter; for savgol it sets the window). "
-                     "6 Hz suits walking; use 10-15 Hz for sprints, strikes, jumps.")]
+                     "6 Hz suits walking; use 10-15 Hz for sprints, strikes, jumps (0.1 Hz at least).")]
 EulerOrder = Annotated[str | None, typer.Option(
     "--euler-order", help="Decompose every joint angle in this intrinsic order (XYZ, ZXY, ...); default: each "
                           "joint's BVH channel order.", show_default=False)]

@@ -23,7 +23,7 @@ Method = Annotated[MethodChoice, typer.Option(
     help="kcpd: kernel change points on the 8 bone angles and their speeds; heuristic: the paper's swing-ratio "
          "candidates on the low-passed norm signal.", case_sensitive=False)]
 Param = Annotated[float, typer.Option(min=0.0, max=1.0, help="heuristic: swing-ratio threshold (paper: 0.5).")]
-Cutoff = Annotated[float, typer.Option(help="Low-pass cut-off of the norm signal, Hz (heuristic, plot).")]
+Cutoff = Annotated[float, typer.Option(help="Low-pass cut-off of the norm signal, Hz, from 0.1 to half the frame rate (heuristic, plot).")]
 Penalty = Annotated[float | None, typer.Option(
     help="kcpd: cost of one cut (larger: fewer cuts); default: ln N for N samples at 10 Hz (grows with the "
          "take's length, no labels needed).", show_default=False)]

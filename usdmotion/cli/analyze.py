@@ -34,7 +34,7 @@ def analyze(
     filter: Filter = FilterChoice.butter,
     cutoff: Cutoff = 6.0,
     euler_order: EulerOrder = None,
-    mass: Annotated[float | None, typer.Option(help="Body mass in kg (for the linear momentum).",
+    mass: Annotated[float | None, typer.Option(help="Body mass in kg, 1 to 1000 (for the linear momentum).",
                                                show_default=False)] = None,
     sex: Annotated[SexChoice, typer.Option(help="de Leva (1996) table column.")] = SexChoice.male,
     segments: _opt("--segments", "Segment map (JSON/YAML): landmark overrides or a custom segment table.") = None,

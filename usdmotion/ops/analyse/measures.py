@@ -49,6 +49,9 @@ from usdmotion.rotations import check_euler_order, closest_equivalent_euler
 from usdmotion.skeleton_names import children_map, distal_joints, marked_joints, proximal_joint, rest_tolerance
 
 AXES = ("x", "y", "z")
+#: Body masses ``--mass`` accepts (kg): a small child to the heaviest athletes, with margin; a
+#: mass outside it is a typo (1e30 kg gave momenta of 2e30 kg m/s, exit 0).
+MASS_RANGE_KG = (1.0, 1000.0)
 
 
 @dataclass(frozen=True, eq=False)
@@ -315,8 +318,9 @@ def analyse(motion: Motion, filter: FilterSpec = FilterSpec(), euler_order: str 
     _check_finite(motion, source)
     if motion.n_frames < 2:
         raise InputError(source, f"{motion.n_frames} frame(s): velocities need at least 2")
-    if mass is not None and not (np.isfinite(mass) and mass > 0):
-        raise InputError(source, f"--mass must be a positive number of kilograms, got {mass}")
+    if mass is not None and not (np.isfinite(mass) and MASS_RANGE_KG[0] <= mass <= MASS_RANGE_KG[1]):
+        raise InputError(source, f"--mass must be a body mass between {MASS_RANGE_KG[0]:g} and {MASS_RANGE_KG[1]:g} kg, "
+                                 f"got {mass:g}")
     fps = motion.fps
     filter.check(fps)
     world_q, world_p = world_rotations_positions(motion)

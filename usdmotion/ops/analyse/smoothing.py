@@ -33,6 +33,10 @@ import numpy as np
 
 FILTER_METHODS = ("butter", "savgol", "none")
 DEFAULT_CUTOFF_HZ = 6.0
+#: Lowest cutoff accepted (Hz): below it a low-pass removes the movement itself (a stride
+#: lasts ~1 s), and the zero-lag filter's end padding grows as fps / cutoff (0.01 Hz took
+#: 530 MB for a 524-frame walk; 1e-9 Hz asked numpy for 2.6 TiB).
+MIN_CUTOFF_HZ = 0.1
 
 
 @dataclass(frozen=True)
@@ -61,9 +65,9 @@ class FilterSpec:
             raise ValueError(f"unknown filter {self.method!r}: use one of {', '.join(FILTER_METHODS)}")
         if self.method != "none":
             nyquist = 0.5 * fps
-            if not (np.isfinite(self.cutoff) and 0 < self.cutoff < nyquist):
-                raise ValueError(f"--cutoff {self.cutoff:g} Hz must be above 0 and below the Nyquist frequency "
-                                 f"{nyquist:g} Hz of this {fps:g} fps motion")
+            if not (np.isfinite(self.cutoff) and MIN_CUTOFF_HZ <= self.cutoff < nyquist):
+                raise ValueError(f"--cutoff {self.cutoff:g} Hz must be at least {MIN_CUTOFF_HZ:g} Hz and below the "
+                                 f"Nyquist frequency {nyquist:g} Hz of this {fps:g} fps motion")
         if self.order < 1 or not 1 <= self.polyorder <= 6:
             raise ValueError("filter order must be >= 1 and polyorder between 1 and 6")
         return self

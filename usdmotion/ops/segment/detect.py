@@ -42,6 +42,9 @@ DEFAULT_METHOD = "kcpd"
 DEFAULT_PARAM = 0.5
 #: Low-pass cut-off of the norm signal (Hz) for the heuristic and the plot.
 DEFAULT_CUTOFF_HZ = 2.0
+#: Lowest low-pass cut-off of ``Q`` (Hz): below it the curve is flat (and at 1e-12 Hz scipy's
+#: filter design failed with "Singular matrix").
+MIN_CUTOFF_HZ = 0.1
 #: Kernel change-point defaults: penalty per cut = ``DEFAULT_PENALTY_SCALE · ln N`` (``N`` samples at
 #: ``KCPD_RATE_HZ``; a label-free rule from the take's length), speed weight (s), minimum segment (s),
 #: rate (Hz), feature set, and the longest segment treated as a transition between two actions (s).
@@ -188,8 +191,9 @@ def lowpass(x: np.ndarray, fps: float, cutoff_hz: float = DEFAULT_CUTOFF_HZ, ord
     """Zero-phase Butterworth low-pass of ``x`` along axis 0 (no lag, so extrema stay put)."""
     from scipy import signal
 
-    if not 0 < cutoff_hz < fps / 2:
-        raise ValueError(f"low-pass cut-off must be in (0, {fps / 2:g}) Hz (half the frame rate), got {cutoff_hz}")
+    if not MIN_CUTOFF_HZ <= cutoff_hz < fps / 2:  # 1e-12 Hz: scipy's "Singular matrix"
+        raise ValueError(f"--cutoff {cutoff_hz:g} Hz must be at least {MIN_CUTOFF_HZ:g} Hz and below half the frame "
+                         f"rate ({fps / 2:g} Hz)")
     sos = signal.butter(order, cutoff_hz, fs=fps, output="sos")
     return signal.sosfiltfilt(sos, x, axis=0)
 
