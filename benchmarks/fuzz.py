@@ -3,9 +3,11 @@
     python benchmarks/fuzz.py --minutes 10 [--seed 1] [--save] [--only convert_asf,convert_amc]
 
 Mutates valid seeds (BVH, USDA, USDC, GLB, ASF, AMC, joint-map JSON, segments JSON, USD camera; see
-``tests/fuzz_support.py``) and fuzzes render/retarget options, runs each case through
+``tests/fuzz_support.py``) and fuzzes render, retarget, edit and analysis options (absurd numbers
+included), runs each case through
 the real CLI in-process and classifies it: ``ok`` (exit 0, output reads back), ``clean``
-(exit 2, one ``usdmotion: error:`` line, nothing left) or ``defect``. Prints counts per
+(exit 2, one ``usdmotion: error:`` line that is not a raw library message, nothing left) or
+``defect``. Prints counts per
 entry point and writes ``benchmarks/results/fuzz.json``. With ``--save`` each distinct
 defect is kept as a reproducer in ``tests/data/malformed/fuzz/`` (file + command in
 ``manifest.json``), which ``tests/test_bad_input.py`` replays.
@@ -44,7 +46,8 @@ from fuzz_support import ENTRY_POINTS, MALFORMED, expand, make_seeds, mutate, op
 #: Relative weight of each entry point (slow ones — JAX, GL — drawn less often).
 WEIGHTS = {"convert_bvh": 6, "convert_bvh_small": 6, "info_bvh": 3, "convert_usda": 6, "convert_usdc": 3,
            "info_usda": 3, "convert_glb": 4, "convert_asf": 4, "convert_amc": 4, "info_amc": 2,
-           "jointmap": 1, "segments": 3, "camera": 1, "render_options": 1, "retarget_options": 1}
+           "jointmap": 1, "segments": 3, "camera": 1, "render_options": 1, "retarget_options": 1,
+           "edit_options": 2}
 FUZZ_DIR = MALFORMED / "fuzz"
 
 
@@ -119,7 +122,7 @@ def campaign(minutes: float, seed: int, save: bool, only: list[str] | None = Non
             out_dir = case_dir / "out"
             out_dir.mkdir(parents=True)
             data, suffix = None, ""
-            if name in ("render_options", "retarget_options"):
+            if name in ("render_options", "retarget_options", "edit_options"):
                 template = option_case(rng, name.split("_")[0])
                 src = seeds["walk"]
             else:

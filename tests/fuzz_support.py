@@ -265,12 +265,46 @@ RETARGET_OPTIONS = {
 }
 
 
+#: Numbers past any sensible range: a result too long to hold, a body mass of a planet...
+HUGE_AND_TINY = ["0", "-1", "nan", "inf", "1e-300", "1e-9", "1e9", "1e300", "99999999999999999999"]
+#: The edit and analysis commands (one take in, one out or a report), each with its own
+#: options; a case draws one command and 1–3 of its options.
+EDIT_COMMANDS = {
+    "speed": (["speed", "{walk}", "{out}.bvh"], {"--factor": ["0.5", "2", *HUGE_AND_TINY],
+                                                 "--key": ["0=1e-9", "10=1e9", "0=nan", "99999999=1", "0=0.5"]}),
+    "resample": (["resample", "{walk}", "{out}.bvh", "--fps", "30"], {"--fps": ["60", "0.5", *HUGE_AND_TINY]}),
+    "cycle": (["cycle", "{walk}", "{out}.bvh"], {"--loops": ["1", "3", "100000000", "-2", "x"],
+                                                 "--transition": ["0.1", "1e9", "-1", "nan"],
+                                                 "--frames": ["0:100", "0:3", "5:2", "0:99999999999"]}),
+    "reorient": (["reorient", "{walk}", "{out}.bvh"], {"--rotate": ["90", "1e300", "nan"],
+                                                       "--translate": ["1,2,3", "1e16,0,0", "1e14,0,0", "nan,0,0"],
+                                                       "--position": ["0,0", "1e300,0", "inf,0"]}),
+    "displace": (["displace", "{walk}", "{out}.bvh"], {"--move": ["Hips@10=1e15,0,0", "Hips@10=1,2,3",
+                                                                  "Hips@99999999999=1,1,1"],
+                                                       "--rotate": ["Head@10=1e300,0,0", "Head@10=10,0,0"],
+                                                       "--falloff": ["0.5", "1e300", "-1", "nan"]}),
+    "analyze": (["analyze", "{walk}", "--out", "{out}.csv"], {"--cutoff": ["6", *HUGE_AND_TINY],
+                                                              "--mass": ["70", *HUGE_AND_TINY]}),
+    "segment": (["segment", "{walk}", "--out", "{out}.json"], {"--cutoff": ["2", *HUGE_AND_TINY],
+                                                               "--penalty": ["5", *HUGE_AND_TINY],
+                                                               "--min-length": ["1", *HUGE_AND_TINY]}),
+    "contacts": (["contacts", "{walk}", "--json", "{out}.json"], {
+        "--floor": ["0", "1e20", "nan"], "--height-enter": ["0.05", *HUGE_AND_TINY],
+        "--height-exit": ["0.08", *HUGE_AND_TINY], "--speed-enter": ["0.3", *HUGE_AND_TINY],
+        "--min-duration": ["0.05", *HUGE_AND_TINY]}),
+}
+
+
 def option_case(rng: random.Random, command: str) -> list[str]:
-    """A render or retarget command line with 1–3 fuzzed options."""
-    table = RENDER_OPTIONS if command == "render" else RETARGET_OPTIONS
-    args = (["render", "{walk}", "{out}.mp4", "--size", "64x48", "--frames", "0:2", "--style", "stick"]
-            if command == "render" else ["retarget", "{walk}", "{out}.bvh", "--iterations", "1"])
-    for option in rng.sample(sorted(table), rng.randint(1, 3)):
+    """A render, retarget or edit/analysis command line with 1–3 fuzzed options."""
+    if command == "edit":
+        args, table = EDIT_COMMANDS[rng.choice(sorted(EDIT_COMMANDS))]
+        args = list(args)
+    else:
+        table = RENDER_OPTIONS if command == "render" else RETARGET_OPTIONS
+        args = (["render", "{walk}", "{out}.mp4", "--size", "64x48", "--frames", "0:2", "--style", "stick"]
+                if command == "render" else ["retarget", "{walk}", "{out}.bvh", "--iterations", "1"])
+    for option in rng.sample(sorted(table), rng.randint(1, min(3, len(table)))):
         args += [option, rng.choice(table[option])]
     if command == "retarget" and "--remove" not in args and "--add" not in args:
         args += ["--remove", "LThumb"]
@@ -349,9 +383,17 @@ def run_case(args: list[str], out_dir: Path, timeout_s: int = 300) -> Outcome:
     return classify(code, stderr, args, out_dir)
 
 
+#: Library messages that reached the error line as they are: they name no file or option and
+#: say nothing a user can act on (numpy's allocation failure, scipy's linear algebra, reprs).
+_RAW_DIAGNOSTIC = re.compile(r"Unable to allocate|Singular matrix|np\.(float|int)\d*\(|array with shape|"
+                             r"has no attribute|unhashable type|is out of bounds for axis|could not be broadcast|"
+                             r"object is not subscriptable|math domain error|invalid value encountered")
+
+
 def classify(code: int, stderr: str, args: list[str], out_dir: Path) -> Outcome:
     lines = [line for line in stderr.splitlines() if line.strip()]
-    foreign = [line for line in lines if not line.startswith("usdmotion: ")]
+    # analyze says "wrote FILE" on stderr (its stdout is the summary, JSON with --json)
+    foreign = [line for line in lines if not line.startswith(("usdmotion: ", "wrote "))]
     left = sorted(p.name for p in out_dir.iterdir())
     if "Traceback" in stderr or foreign:
         return Outcome("defect", code, stderr, f"foreign output: {(foreign or ['Traceback'])[0][:120]}")
@@ -364,6 +406,9 @@ def classify(code: int, stderr: str, args: list[str], out_dir: Path) -> Outcome:
             return Outcome("defect", code, stderr, f"{len(errors)} error lines")
         if left:
             return Outcome("defect", code, stderr, f"left behind: {left}")
+        raw = _RAW_DIAGNOSTIC.search(errors[0])
+        if raw:
+            return Outcome("defect", code, stderr, f"raw library diagnostic ({raw.group(0)}): {errors[0][:160]}")
         return Outcome("clean", code, stderr)
     if code == 0:
         outputs = [p for p in out_dir.iterdir() if p.suffix in (".bvh", ".usda", ".usdc")]

@@ -403,9 +403,16 @@ def segment(motion: Motion, method: str = DEFAULT_METHOD, param: float = DEFAULT
         raise ValueError(f"unknown method {method!r} (use {', '.join(METHODS)})")
     if features not in FEATURE_SETS:
         raise ValueError(f"unknown feature set {features!r} (use {', '.join(FEATURE_SETS)})")
-    if (penalty is not None and penalty <= 0) or penalty_scale <= 0 or min_length_s <= 0 or speed_weight < 0 \
-            or transition_s < 0:
-        raise ValueError("penalty and min-length must be positive, speed weight and transition non-negative")
+    for name, value, least in (("--penalty", penalty, 0.0), ("penalty scale", penalty_scale, 0.0),
+                               ("--min-length", min_length_s, 0.0), ("speed weight", speed_weight, None),
+                               ("transition", transition_s, None), ("--param", param, None)):
+        if value is None and name == "--penalty":
+            continue
+        # NaN and inf passed the comparisons here before (ruptures' AssertionError, an OverflowError)
+        if not (isinstance(value, (int, float)) and math.isfinite(value)
+                and (value > least if least is not None else value >= 0)):
+            kind = "positive" if least is not None else "non-negative"
+            raise ValueError(f"{name} must be a {kind} number, got {value!r}")
     check_length(motion, source)
     role_index = find_roles(motion, overrides=roles, preset=preset, source=source)
     positions = role_positions(motion, role_index)
