@@ -120,7 +120,8 @@ def output_frames(motion: Motion, options: RenderOptions) -> tuple[np.ndarray, n
     span = (end - 1 - start) / motion.fps
     count = math.floor(span * fps / options.speed + 1e-6) + 1
     if count > MAX_VIDEO_FRAMES:  # checked before the frame arrays are allocated
-        raise UsdMotionError(f"the video would have {count:,} frames ({span:.3g} s of motion at --speed "
+        shown = f"{count:,}" if count < 10**12 else f"{float(count):.3g}"  # --speed 1e-300: 300 digits otherwise
+        raise UsdMotionError(f"the video would have {shown} frames ({span:.3g} s of motion at --speed "
                              f"{options.speed:g}, {fps:g} fps); at most {MAX_VIDEO_FRAMES:,} (9 hours at 60 fps)")
     times = start / motion.fps + np.arange(count) * options.speed / fps
     frames = np.clip(np.rint(times * motion.fps).astype(np.int64), start, end - 1)

@@ -30,7 +30,10 @@ def check_result_frames(count: int, n_joints: int, what: str) -> None:
     except (ValueError, OSError, AttributeError):  # not POSIX: the frame cap alone
         memory = float("inf")
     if count > MAX_FRAMES or need > memory / 2:
-        raise EditError(f"{what}: the result would have {count:,} frames ({need / 2**30:,.1f} GiB of rotations); at most "
+        shown = f"{count:,}" if count < 10**12 else f"{float(count):.3g}"  # 1e-300: 300 digits otherwise
+        gib = need / 2**30
+        raise EditError(f"{what}: the result would have {shown} frames "
+                        f"({f'{gib:,.1f}' if gib < 1e9 else f'{gib:.3g}'} GiB of rotations); at most "
                         f"{MAX_FRAMES:,} frames whose rotations fit in half of this machine's "
                         f"{memory / 2**30:,.0f} GiB are supported")
 
