@@ -33,7 +33,7 @@ import numpy as np
 from usdmotion.channels import rotation_order
 from usdmotion.kinematics import fk_arrays, world_rotations_positions
 from usdmotion.motion import POSITION_CHANNELS, Motion
-from usdmotion.ops.retarget.hierarchy import (Rig, RetargetError, UnitsMismatchError, adapt_offsets, ancestor_matrix,
+from usdmotion.ops.retarget.hierarchy import (Rig, RetargetError, adapt_offsets, ancestor_matrix,
                                      derive_rig, mapped_chains, rig_from_motion, source_bone_lengths, with_ancestors)
 from usdmotion.ops.retarget import quality as retarget_quality
 from usdmotion.ops.retarget import report as retarget_report
@@ -45,6 +45,7 @@ from usdmotion.ops.retarget.losses import frame_losses
 from usdmotion.ops.retarget.problem import Problem
 from usdmotion.ops.retarget.aim import aim_init, aim_single_points, identity_quats as _identity
 from usdmotion.ops.retarget.rotation_terms import smooth_scale
+from usdmotion.ops.retarget.scale import source_scale
 from usdmotion.ops.retarget.solve import solve
 from usdmotion.ops.retarget.unmapped import continuous_hemisphere, unmapped_rules
 from usdmotion.progress import Progress
@@ -56,8 +57,6 @@ METHODS = ("lm", "adam")
 #: distances the joint moves (see :func:`smooth_scale`); small enough to leave what the
 #: positions determine alone (RMS +0.x %), large enough to hold what they barely determine.
 PRIOR = 0.01
-#: Sizes (target / source, after unit conversion) outside this range mean the units disagree.
-SIZE_RATIO_RANGE = (0.5, 2.0)
 
 
 @dataclass(frozen=True)
@@ -149,29 +148,7 @@ def prepare(source: Motion, target: Motion | None = None, *, remove=(), add=(), 
     units = source.meters_per_unit / rig.meters_per_unit
     chains, src_len, rest_len = _chain_sizes(rig, mapped_mask, source_of, positions)
     ratio = float(rest_len.sum() / (units * src_len.sum())) if src_len.sum() > 0 and rest_len.sum() > 0 else 1.0
-    if mode == "derived":
-        if scale not in ("units", "auto", 1, 1.0):
-            raise RetargetError("--scale applies to --target only (a derived rig keeps the source's units)")
-        s = 1.0
-    elif scale == "units":
-        s = units
-        lo, hi = SIZE_RATIO_RANGE
-        if not lo <= ratio <= hi:
-            raise UnitsMismatchError(
-                f"{rig.path}: the target skeleton is {ratio:.3g}x the size of the source after converting units "
-                f"({source.meters_per_unit:g} -> {rig.meters_per_unit:g} m/unit): the units look mismatched; state "
-                "them with --units / --target-units, or pass --scale auto to fit the source to the target's size")
-    elif scale == "auto":
-        s = units * ratio
-    else:
-        s = float(scale)
-        if not (np.isfinite(s) and s > 0):
-            raise RetargetError(f"--scale must be 'units', 'auto' or a positive number, got {scale!r}")
-        lo, hi = SIZE_RATIO_RANGE  # a factor that leaves the source out of the target's reach solves nothing
-        if not lo <= units * ratio / s <= hi:
-            raise RetargetError(
-                f"{rig.path}: --scale {s:g} makes the source {s / (units * ratio):.3g}x the size of this target skeleton; "
-                f"a factor within {hi:g}x of --scale auto's ({units * ratio:.3g}) keeps it within reach")
+    s = source_scale(scale, mode, units, ratio, source.meters_per_unit, rig)
     positions = positions * s
     src_len = src_len * s
     targets = np.zeros((source.n_frames, rig.n_joints, 3))
