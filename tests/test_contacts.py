@@ -241,6 +241,9 @@ def test_cli_table_json_and_plot(tmp_path, capsys):
     (["{walk}", "--height-enter", "0.2"], r"the exit thresholds must be at least the enter thresholds"),
     (["{walk}", "--plot", "{tmp}/c.gif"], r"unknown image format '\.gif'"),
     (["{walk}", "--floor", "nan"], r"floor height must be a finite number"),
+    # every frame counted as penetrating the floor, exit 0, before
+    (["{walk}", "--floor", "1e20"], r"floor height 1e\+20 m is above the feet in every frame \(their lowest point "
+                                    r"reaches at most 0\.\d+ m, up axis Y\)"),
     (["{walk}", "--plot", "{tmp}/walk.bvh.png", "--json", "{walk}"], r"walk\.bvh: output would overwrite the input"),
 ])
 def test_cli_bad_input_one_line_exit_2_nothing_written(tmp_path, capsys, args, message):
