@@ -202,6 +202,9 @@ def test_json_round_trip_validates_against_the_schema(tmp_path):
     (lambda d: d.update(up_axis="X"), r"/up_axis: 'X' is not one of"),
     (lambda d: d.update(frames=480.0, joints=[dict(d["joints"][0], intervals=[[3.0, 1.0]])]), r"\[3, 1\] is not"),
     (lambda d: d.update(thresholds=dict(d["thresholds"], speed_exit=0.01)), r"/thresholds: the exit thresholds"),
+    # a retarget planted the feet 1e20 m up with these (exit 0, a warning)
+    (lambda d: d.update(floor_m=1e20), r"/floor_m: 1e\+20 m is above the feet in every frame"),
+    (lambda d: d["joints"][1].update(clearance_m=1e6), r"/joints/1/clearance_m: planted at 1e\+06 m, above everywhere"),
 ])
 def test_bad_contacts_files_are_refused_with_the_path(tmp_path, change, message):
     motion, _ = synthetic_walk(120.0)

@@ -307,6 +307,17 @@ def heel_off(contact: np.ndarray, heights: np.ndarray, parts: tuple[str, ...],
     return contact & (_run_lengths(contact) >= min_frames)
 
 
+def check_floor_below_feet(heights: np.ndarray, floor: float, up_axis: str, source: str | None,
+                           what: str = "floor height") -> None:
+    """Refuse a floor (m) above the contact joints in every frame: the whole take would stand in
+    it (``--floor 1e20`` counted every frame as penetrating, exit 0). One below them is fine:
+    the planted clearance takes it up. ``heights``: ``(F, C)`` m (:func:`contact_signals`)."""
+    lowest_at_most = float(heights.min(axis=1).max())
+    if floor > lowest_at_most:
+        raise InputError(source, f"{what} {floor:g} m is above the feet in every frame (their lowest point "
+                                 f"reaches at most {lowest_at_most:.3f} m, up axis {up_axis})")
+
+
 def detect_contacts(motion: Motion, *, floor: float | None = None, thresholds: ContactThresholds | None = None,
                     joints: tuple[str, ...] | None = None, source: str | None = None) -> FootContacts:
     """Foot contacts of ``motion`` (see the module docstring for the rule).
@@ -334,12 +345,8 @@ def detect_contacts(motion: Motion, *, floor: float | None = None, thresholds: C
         raise InputError(source, f"floor height must be a finite number of metres, got {floor!r}")
     positions = joint_positions(motion)[:, indices] * motion.meters_per_unit
     heights, speeds = contact_signals(positions, motion.fps, motion.up_axis)
-    # a floor above the feet in every frame has the whole take standing in it (1e20 m: every frame
-    # "penetrating", exit 0 before); one below them is fine: the planted clearance takes it up
-    lowest_at_most = float(heights.min(axis=1).max()) if floor is not None else 0.0
-    if floor is not None and floor > lowest_at_most:
-        raise InputError(source, f"floor height {floor:g} m is above the feet in every frame (their lowest "
-                                 f"point reaches at most {lowest_at_most:.3f} m, up axis {motion.up_axis})")
+    if floor is not None:
+        check_floor_below_feet(heights, floor, motion.up_axis, source)
     floor = estimate_floor(heights, thresholds.floor_percentile) if floor is None else float(floor)
     clearance = planted_clearance(heights, floor, thresholds.floor_percentile)
     contact = detect_in_signals(heights, speeds, motion.fps, thresholds, floor, clearance)

@@ -14,7 +14,7 @@ from usdmotion.constants import MAX_FRAMES
 from usdmotion.errors import InputError, OutputError
 from usdmotion.io.atomic import atomic_output
 from usdmotion.motion import Motion
-from usdmotion.ops.contacts.detect import ContactThresholds, FootContacts, contact_signals
+from usdmotion.ops.contacts.detect import ContactThresholds, FootContacts, check_floor_below_feet, contact_signals
 
 #: Image formats of the plot.
 IMAGE_FORMATS = (".png", ".pdf", ".svg")
@@ -113,6 +113,20 @@ def _check_fits(path, doc: dict, names: tuple[str, ...], motion: Motion) -> None
                                f"{motion.n_frames}")
     if doc["up_axis"] != motion.up_axis:
         raise InputError(path, f"/up_axis: the contacts are {doc['up_axis']}-up, the motion is {motion.up_axis}-up")
+    from usdmotion.kinematics import joint_positions
+
+    indices = [motion.joint_names.index(n) for n in names]
+    heights, _ = contact_signals(joint_positions(motion)[:, indices] * motion.meters_per_unit, motion.fps,
+                                 motion.up_axis)
+    # a floor_m of 1e20 planted the retarget's feet 1e20 m up (exit 0, a warning); each joint's planted
+    # level (floor + clearance) likewise must not lie above everywhere that joint goes
+    check_floor_below_feet(heights, float(doc["floor_m"]), motion.up_axis, str(path), "/floor_m:")
+    level = float(doc["floor_m"]) + np.array([j["clearance_m"] for j in doc["joints"]], float)
+    above = np.flatnonzero(~(level <= heights.max(axis=0)))
+    if above.size:
+        c = int(above[0])
+        raise InputError(path, f"/joints/{c}/clearance_m: planted at {level[c]:g} m, above everywhere "
+                               f"{names[c]} goes (at most {heights[:, c].max():.3f} m)")
 
 
 def plot_path(path: str | os.PathLike) -> Path:
