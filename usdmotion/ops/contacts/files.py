@@ -91,8 +91,10 @@ def read_contacts_json(path: str | os.PathLike, motion: Motion | None = None) ->
                                        f"non-overlapping frame range within 0..{frames}")
             contact[start:stop, c] = True
             last = stop
+    clearance = np.array([j["clearance_m"] for j in joints], float)
     if motion is not None:
         indices = np.array([motion.joint_names.index(n) for n in names], np.int64)
+        _check_levels(path, float(doc["floor_m"]), clearance, names, indices, motion)
     else:
         indices = np.full(len(names), -1, np.int64)
     try:
@@ -100,8 +102,7 @@ def read_contacts_json(path: str | os.PathLike, motion: Motion | None = None) ->
     except ValueError as exc:
         raise InputError(path, f"/thresholds: {exc}") from None
     return FootContacts(names, indices, tuple(j["part"] for j in joints), contact, float(doc["floor_m"]),
-                        np.array([j["clearance_m"] for j in joints], float), doc["up_axis"], float(doc["fps"]),
-                        thresholds)
+                        clearance, doc["up_axis"], float(doc["fps"]), thresholds)
 
 
 def _check_fits(path, doc: dict, names: tuple[str, ...], motion: Motion) -> None:
@@ -113,15 +114,20 @@ def _check_fits(path, doc: dict, names: tuple[str, ...], motion: Motion) -> None
                                f"{motion.n_frames}")
     if doc["up_axis"] != motion.up_axis:
         raise InputError(path, f"/up_axis: the contacts are {doc['up_axis']}-up, the motion is {motion.up_axis}-up")
+
+
+def _check_levels(path, floor: float, clearance: np.ndarray, names: tuple[str, ...], indices: np.ndarray,
+                  motion: Motion) -> None:
+    """The file's floor (m) and planted levels (``floor + clearance (C,)``) against where
+    ``motion``'s contact joints ``indices`` go."""
     from usdmotion.kinematics import joint_positions
 
-    indices = [motion.joint_names.index(n) for n in names]
     heights, _ = contact_signals(joint_positions(motion)[:, indices] * motion.meters_per_unit, motion.fps,
                                  motion.up_axis)
     # a floor_m of 1e20 planted the retarget's feet 1e20 m up (exit 0, a warning); each joint's planted
     # level (floor + clearance) likewise must not lie above everywhere that joint goes
-    check_floor_below_feet(heights, float(doc["floor_m"]), motion.up_axis, str(path), "/floor_m:")
-    level = float(doc["floor_m"]) + np.array([j["clearance_m"] for j in doc["joints"]], float)
+    check_floor_below_feet(heights, floor, motion.up_axis, str(path), "/floor_m:")
+    level = floor + clearance
     above = np.flatnonzero(~(level <= heights.max(axis=0)))
     if above.size:
         c = int(above[0])
